@@ -1,0 +1,520 @@
+/* treestereo: metas and element messages of the treestereo plugin set
+ *
+ * One public header, plain C. Every element of the plugin set attaches one of these metas to
+ * the buffers it handles and posts an element message with the same figures; applications read
+ * either. Pixel coordinates are in rectified-view pixels (each view's own coordinates, the right
+ * view's x not offset by the side-by-side layout), 3D values in the rectified-left camera frame
+ * (x right, y down, z forward).
+ *
+ * Link with pkg-config gsttreestereo-1.0.
+ */
+#ifndef __GST_TREE_STEREO_META_H__
+#define __GST_TREE_STEREO_META_H__
+
+#include <gst/gst.h>
+#include <gst/video/video.h>
+
+G_BEGIN_DECLS
+
+#define GST_TREE_STEREO_LEFT 0
+#define GST_TREE_STEREO_RIGHT 1
+
+/* -------------------------------------------------------------------------------------------
+ * Stereo geometry (stereorectify)
+ * ------------------------------------------------------------------------------------------- */
+
+/**
+ * GstTreeStereoGeometryMeta:
+ * @view_width: width of one rectified view (the frame is 2 * view_width wide when side by side)
+ * @view_height: height of one rectified view
+ * @side_by_side: TRUE when the buffer holds both views side by side, FALSE for one view
+ * @rectified: TRUE when the pixels were rectified (FALSE: passed through as already rectified)
+ * @fx: rectified focal length in x (px) per view ([0] left, [1] right)
+ * @fy: rectified focal length in y (px) per view
+ * @cx: principal point x (px) per view
+ * @cy: principal point y (px) per view
+ * @baseline_mm: distance between the optical centres (mm)
+ * @Q: 4x4 disparity-to-depth matrix, row major (cv::stereoRectify's Q), disparity = xl - xr
+ * @R1: 3x3 rotation from the (unrectified) left camera frame to the rectified-left frame
+ * @pts: the original timestamps of the left and right frames
+ * @skew_ns: pts[right] - pts[left] in running time (ns)
+ *
+ * Added by stereorectify. Depth of a point with disparity d: Z = fx[0] * baseline_mm / (d - doffs)
+ * where doffs = cx[0] - cx[1] (0 after OpenCV's rectification with CALIB_ZERO_DISPARITY).
+ */
+typedef struct {
+  GstMeta meta;
+
+  guint view_width;
+  guint view_height;
+  gboolean side_by_side;
+  gboolean rectified;
+  gdouble fx[2];
+  gdouble fy[2];
+  gdouble cx[2];
+  gdouble cy[2];
+  gdouble baseline_mm;
+  gdouble Q[16];
+  gdouble R1[9];
+  GstClockTime pts[2];
+  gint64 skew_ns;
+} GstTreeStereoGeometryMeta;
+
+GType gst_tree_stereo_geometry_meta_api_get_type (void);
+const GstMetaInfo *gst_tree_stereo_geometry_meta_get_info (void);
+#define GST_TREE_STEREO_GEOMETRY_META_API_TYPE (gst_tree_stereo_geometry_meta_api_get_type ())
+#define GST_TREE_STEREO_GEOMETRY_META_INFO (gst_tree_stereo_geometry_meta_get_info ())
+
+/* Adds a geometry meta with all fields zero and pts invalid; the caller fills it in. */
+GstTreeStereoGeometryMeta *gst_buffer_add_tree_stereo_geometry_meta (GstBuffer *buffer);
+#define gst_buffer_get_tree_stereo_geometry_meta(b) \
+  ((GstTreeStereoGeometryMeta *) gst_buffer_get_meta ((b), GST_TREE_STEREO_GEOMETRY_META_API_TYPE))
+
+/* Disparity offset cx[0] - cx[1] (px). */
+gdouble gst_tree_stereo_geometry_meta_doffs (const GstTreeStereoGeometryMeta *meta);
+
+/* -------------------------------------------------------------------------------------------
+ * Vegetation (exgsegment)
+ * ------------------------------------------------------------------------------------------- */
+
+typedef enum {
+  GST_TREE_STEREO_INDEX_EXG = 0,          /* 2G - R - B */
+  GST_TREE_STEREO_INDEX_EXG_EXR = 1,      /* ExG - ExR, ExR = 1.4R - G */
+  GST_TREE_STEREO_INDEX_EXG_NORM = 2,     /* 2g - r - b on chromatic coordinates r = R/(R+G+B) */
+  GST_TREE_STEREO_INDEX_EXG_EXR_NORM = 3, /* ExG - ExR on chromatic coordinates */
+} GstTreeStereoVegetationIndex;
+
+/**
+ * GstTreeStereoVegetationView:
+ * @present: TRUE when a canopy was found in this view; all other figures are 0 otherwise
+ * @threshold: the index threshold used (Otsu's or the fixed one), in the index's own units
+ * @area_px: canopy area (px)
+ * @perimeter_px: canopy perimeter (px), of the outer contour(s)
+ * @complexity: perimeter^2 / (4 pi area), 1 for a disc
+ * @centroid_x: centroid x (px)
+ * @centroid_y: centroid y (px)
+ * @bbox_x: bounding box of the canopy (px)
+ * @n_regions: number of connected regions kept
+ * @n_contour: number of points in @contour
+ * @contour: outer contour of the largest region, @n_contour (x, y) pairs, px
+ * @mask: a GRAY8 mask of the whole view (255 canopy, 0 not), @mask_stride bytes per row, or NULL
+ */
+typedef struct {
+  gboolean present;
+  gdouble threshold;
+  gdouble area_px;
+  gdouble perimeter_px;
+  gdouble complexity;
+  gdouble centroid_x;
+  gdouble centroid_y;
+  gint bbox_x;
+  gint bbox_y;
+  gint bbox_width;
+  gint bbox_height;
+  guint n_regions;
+  guint n_contour;
+  gint32 *contour;
+  GstBuffer *mask;
+  guint mask_width;
+  guint mask_height;
+  guint mask_stride;
+} GstTreeStereoVegetationView;
+
+/**
+ * GstTreeStereoVegetationMeta:
+ * @n_views: 2 for a side-by-side stereo frame, 1 for a mono-view stream
+ * @index: the vegetation index used
+ * @views: per view figures, [0] left (or the only view), [1] right
+ */
+typedef struct {
+  GstMeta meta;
+
+  guint n_views;
+  GstTreeStereoVegetationIndex index;
+  GstTreeStereoVegetationView views[2];
+} GstTreeStereoVegetationMeta;
+
+GType gst_tree_stereo_vegetation_meta_api_get_type (void);
+const GstMetaInfo *gst_tree_stereo_vegetation_meta_get_info (void);
+#define GST_TREE_STEREO_VEGETATION_META_API_TYPE (gst_tree_stereo_vegetation_meta_api_get_type ())
+#define GST_TREE_STEREO_VEGETATION_META_INFO (gst_tree_stereo_vegetation_meta_get_info ())
+
+GstTreeStereoVegetationMeta *gst_buffer_add_tree_stereo_vegetation_meta (GstBuffer *buffer,
+    guint n_views);
+#define gst_buffer_get_tree_stereo_vegetation_meta(b) \
+  ((GstTreeStereoVegetationMeta *) gst_buffer_get_meta ((b), GST_TREE_STEREO_VEGETATION_META_API_TYPE))
+
+/* Sets the contour of @view (copies @n (x, y) pairs). */
+void gst_tree_stereo_vegetation_view_set_contour (GstTreeStereoVegetationView *view,
+    const gint32 *xy, guint n);
+/* Sets the mask of @view (takes a ref on @mask). */
+void gst_tree_stereo_vegetation_view_set_mask (GstTreeStereoVegetationView *view,
+    GstBuffer *mask, guint width, guint height, guint stride);
+/* Copies all figures, the contour and a ref of the mask of @src into @dest (cleared first). */
+void gst_tree_stereo_vegetation_view_copy (GstTreeStereoVegetationView *dest,
+    const GstTreeStereoVegetationView *src);
+/* Frees the contour, drops the mask and zeroes the view. */
+void gst_tree_stereo_vegetation_view_clear (GstTreeStereoVegetationView *view);
+
+/* -------------------------------------------------------------------------------------------
+ * Stereo matches (siftmatch)
+ * ------------------------------------------------------------------------------------------- */
+
+typedef enum {
+  GST_TREE_STEREO_MATCH_EUCLIDEAN = 0,   /* nearest neighbour on L2 distance + ratio test */
+  GST_TREE_STEREO_MATCH_COSINE_NORM = 1, /* the paper's: smallest angles, then closest norms */
+} GstTreeStereoMatchMethod;
+
+/**
+ * GstTreeStereoMatch:
+ * @xl: left x (px, rectified left view)
+ * @yl: left y
+ * @xr: right x (px, rectified right view's own coordinates); disparity = xl - xr
+ * @yr: right y
+ * @score: the matcher's score (descriptor distance or angle; smaller is better)
+ */
+typedef struct {
+  gfloat xl;
+  gfloat yl;
+  gfloat xr;
+  gfloat yr;
+  gfloat score;
+} GstTreeStereoMatch;
+
+typedef struct {
+  GstMeta meta;
+
+  GstTreeStereoMatchMethod method;
+  guint n_keypoints[2];
+  guint n_matches;
+  GstTreeStereoMatch *matches;
+} GstTreeStereoMatchesMeta;
+
+GType gst_tree_stereo_matches_meta_api_get_type (void);
+const GstMetaInfo *gst_tree_stereo_matches_meta_get_info (void);
+#define GST_TREE_STEREO_MATCHES_META_API_TYPE (gst_tree_stereo_matches_meta_api_get_type ())
+#define GST_TREE_STEREO_MATCHES_META_INFO (gst_tree_stereo_matches_meta_get_info ())
+
+/* Adds a matches meta holding a copy of @n_matches @matches (may be NULL when 0). */
+GstTreeStereoMatchesMeta *gst_buffer_add_tree_stereo_matches_meta (GstBuffer *buffer,
+    GstTreeStereoMatchMethod method, guint n_keypoints_left, guint n_keypoints_right,
+    const GstTreeStereoMatch *matches, guint n_matches);
+#define gst_buffer_get_tree_stereo_matches_meta(b) \
+  ((GstTreeStereoMatchesMeta *) gst_buffer_get_meta ((b), GST_TREE_STEREO_MATCHES_META_API_TYPE))
+
+/* -------------------------------------------------------------------------------------------
+ * Stereo points (stereodepth)
+ * ------------------------------------------------------------------------------------------- */
+
+/**
+ * GstTreeStereoPoint:
+ * @x: X (mm), rectified-left camera frame
+ * @y: Y (mm)
+ * @z: Z, depth (mm)
+ * @match_index: index of the match in the matches meta this point comes from
+ * @valid: FALSE when the point was dropped (out of range or an outlier)
+ */
+typedef struct {
+  gfloat x;
+  gfloat y;
+  gfloat z;
+  guint32 match_index;
+  gboolean valid;
+} GstTreeStereoPoint;
+
+/**
+ * GstTreeStereoDepthStats:
+ * @n_points: points computed
+ * @n_valid: points kept
+ * @dropped_range: dropped as outside [min-depth, max-depth]
+ * @dropped_outlier: dropped as outliers of the depth distribution
+ * @median_z_mm: median depth of the kept points (0 when none)
+ * @mad_z_mm: median absolute deviation of the kept depths
+ * @p05_z_mm: 5th percentile of the kept depths
+ * @p95_z_mm: 95th percentile
+ */
+typedef struct {
+  guint n_points;
+  guint n_valid;
+  guint dropped_range;
+  guint dropped_outlier;
+  gdouble median_z_mm;
+  gdouble mad_z_mm;
+  gdouble p05_z_mm;
+  gdouble p95_z_mm;
+} GstTreeStereoDepthStats;
+
+/**
+ * GstTreeStereoPointsMeta:
+ * @dense: TRUE when the points come from a dense disparity map
+ * @depth_map: optional GRAY16_LE depth map (mm, 0 = unknown) covering the left-view rectangle
+ *   (@depth_x, @depth_y, @depth_width, @depth_height), @depth_stride bytes per row
+ */
+typedef struct {
+  GstMeta meta;
+
+  gboolean dense;
+  guint n_points;
+  GstTreeStereoPoint *points;
+  GstTreeStereoDepthStats stats;
+  GstBuffer *depth_map;
+  gint depth_x;
+  gint depth_y;
+  guint depth_width;
+  guint depth_height;
+  guint depth_stride;
+} GstTreeStereoPointsMeta;
+
+GType gst_tree_stereo_points_meta_api_get_type (void);
+const GstMetaInfo *gst_tree_stereo_points_meta_get_info (void);
+#define GST_TREE_STEREO_POINTS_META_API_TYPE (gst_tree_stereo_points_meta_api_get_type ())
+#define GST_TREE_STEREO_POINTS_META_INFO (gst_tree_stereo_points_meta_get_info ())
+
+/* Adds a points meta holding a copy of @n_points @points and @stats (may be NULL: zeroes). */
+GstTreeStereoPointsMeta *gst_buffer_add_tree_stereo_points_meta (GstBuffer *buffer,
+    const GstTreeStereoPoint *points, guint n_points, const GstTreeStereoDepthStats *stats);
+#define gst_buffer_get_tree_stereo_points_meta(b) \
+  ((GstTreeStereoPointsMeta *) gst_buffer_get_meta ((b), GST_TREE_STEREO_POINTS_META_API_TYPE))
+/* Sets the dense depth map (takes a ref on @map). */
+void gst_tree_stereo_points_meta_set_depth_map (GstTreeStereoPointsMeta *meta, GstBuffer *map,
+    gint x, gint y, guint width, guint height, guint stride);
+
+/* -------------------------------------------------------------------------------------------
+ * Tree metrics (treemetrics)
+ * ------------------------------------------------------------------------------------------- */
+
+typedef enum {
+  GST_TREE_STEREO_CLIPPED_NONE = 0,
+  GST_TREE_STEREO_CLIPPED_TOP = (1 << 0),
+  GST_TREE_STEREO_CLIPPED_BOTTOM = (1 << 1),
+  GST_TREE_STEREO_CLIPPED_LEFT = (1 << 2),
+  GST_TREE_STEREO_CLIPPED_RIGHT = (1 << 3),
+} GstTreeStereoClipped;
+
+/**
+ * GstTreeStereoBand:
+ * @present: FALSE when the band holds no canopy; the other values are then 0
+ * @top_m: Y of the band's top (m)
+ * @bottom_m: Y of the band's bottom (m)
+ * @left_m: X of the canopy's left edge in the band (m)
+ * @right_m: X of the right edge (m)
+ * @width_m: right_m - left_m
+ * @depth_m: nearest-face depth of the canopy in the band (m)
+ */
+typedef struct {
+  gboolean present;
+  gdouble top_m;
+  gdouble bottom_m;
+  gdouble left_m;
+  gdouble right_m;
+  gdouble width_m;
+  gdouble depth_m;
+} GstTreeStereoBand;
+
+/**
+ * GstTreeStereoMetrics:
+ *
+ * Every figure of the treemetrics message (see docs/elements/treemetrics.md). When
+ * @tree_present is FALSE all other values are 0 and carry no meaning.
+ */
+typedef struct {
+  gboolean tree_present;
+  gdouble distance_m;
+  gdouble height_m;
+  gdouble width_m;
+  gdouble thickness_m;
+  gdouble area_m2;
+  gdouble perimeter_m;
+  gdouble complexity;
+  gdouble centroid_m[3];
+  guint clipped; /* GstTreeStereoClipped flags */
+  guint n_points;
+  guint n_matches;
+  guint n_bands;
+  GstTreeStereoBand *bands;
+} GstTreeStereoMetrics;
+
+/* Deep copy (bands too) of @src into @dest; @dest is cleared first. */
+void gst_tree_stereo_metrics_copy (GstTreeStereoMetrics *dest, const GstTreeStereoMetrics *src);
+/* Frees the bands and zeroes everything. */
+void gst_tree_stereo_metrics_clear (GstTreeStereoMetrics *m);
+/* Allocates @n zeroed bands (frees the previous ones). */
+void gst_tree_stereo_metrics_set_n_bands (GstTreeStereoMetrics *m, guint n);
+
+/**
+ * GstTreeStereoMetricsMeta:
+ * @metrics: the raw figures of this frame
+ * @smoothed: the temporally smoothed figures (equal to @metrics when smoothing is off)
+ */
+typedef struct {
+  GstMeta meta;
+
+  GstTreeStereoMetrics metrics;
+  GstTreeStereoMetrics smoothed;
+} GstTreeStereoMetricsMeta;
+
+GType gst_tree_stereo_metrics_meta_api_get_type (void);
+const GstMetaInfo *gst_tree_stereo_metrics_meta_get_info (void);
+#define GST_TREE_STEREO_METRICS_META_API_TYPE (gst_tree_stereo_metrics_meta_api_get_type ())
+#define GST_TREE_STEREO_METRICS_META_INFO (gst_tree_stereo_metrics_meta_get_info ())
+
+/* Adds a metrics meta with deep copies of @metrics and @smoothed (NULL: same as @metrics). */
+GstTreeStereoMetricsMeta *gst_buffer_add_tree_stereo_metrics_meta (GstBuffer *buffer,
+    const GstTreeStereoMetrics *metrics, const GstTreeStereoMetrics *smoothed);
+#define gst_buffer_get_tree_stereo_metrics_meta(b) \
+  ((GstTreeStereoMetricsMeta *) gst_buffer_get_meta ((b), GST_TREE_STEREO_METRICS_META_API_TYPE))
+
+/* -------------------------------------------------------------------------------------------
+ * Ground truth (treetestsrc)
+ * ------------------------------------------------------------------------------------------- */
+
+/**
+ * GstTreeStereoTruth:
+ *
+ * The true values of the synthetic scene, defined as the treemetrics fields are, in the
+ * rendered view's own (unrectified) camera frame for the left view.
+ * @view: GST_TREE_STEREO_LEFT or GST_TREE_STEREO_RIGHT
+ * @frame: frame number
+ * @seed: the scene's seed
+ * @distance_m: median depth of the canopy's visible surface in the left view (m)
+ * @depth_p05_m: 5th percentile of that depth
+ * @depth_p95_m: 95th percentile of that depth
+ * @thickness_m: depth_p95_m - depth_p05_m
+ * @height_m: the canopy's true vertical extent (m)
+ * @width_m: the canopy's true horizontal extent (m)
+ * @trunk_distance_m: depth of the trunk's axis (m)
+ * @centroid_m: the canopy's 3D centroid (m), left camera frame
+ * @offset_x_m: the scene's lateral offset at this frame (the sprayer's travel)
+ * @baseline_mm: the rig's baseline
+ */
+typedef struct {
+  guint view;
+  guint64 frame;
+  guint seed;
+  gdouble distance_m;
+  gdouble depth_p05_m;
+  gdouble depth_p95_m;
+  gdouble thickness_m;
+  gdouble height_m;
+  gdouble width_m;
+  gdouble trunk_distance_m;
+  gdouble centroid_m[3];
+  gdouble offset_x_m;
+  gdouble baseline_mm;
+} GstTreeStereoTruth;
+
+/**
+ * GstTreeStereoTruthMeta:
+ * @truth: the scene values
+ * @depth: optional per-pixel depth of this view, GRAY32F-like: @width x @height gfloat (mm,
+ *   0 = nothing hit), rows of @width floats
+ * @mask: optional GRAY8 canopy mask of this view (255 canopy), rows of @width bytes
+ */
+typedef struct {
+  GstMeta meta;
+
+  GstTreeStereoTruth truth;
+  GstBuffer *depth;
+  GstBuffer *mask;
+  guint width;
+  guint height;
+} GstTreeStereoTruthMeta;
+
+GType gst_tree_stereo_truth_meta_api_get_type (void);
+const GstMetaInfo *gst_tree_stereo_truth_meta_get_info (void);
+#define GST_TREE_STEREO_TRUTH_META_API_TYPE (gst_tree_stereo_truth_meta_api_get_type ())
+#define GST_TREE_STEREO_TRUTH_META_INFO (gst_tree_stereo_truth_meta_get_info ())
+
+/* Adds a truth meta; takes refs on @depth and @mask (either may be NULL). */
+GstTreeStereoTruthMeta *gst_buffer_add_tree_stereo_truth_meta (GstBuffer *buffer,
+    const GstTreeStereoTruth *truth, GstBuffer *depth, GstBuffer *mask, guint width,
+    guint height);
+#define gst_buffer_get_tree_stereo_truth_meta(b) \
+  ((GstTreeStereoTruthMeta *) gst_buffer_get_meta ((b), GST_TREE_STEREO_TRUTH_META_API_TYPE))
+
+/* -------------------------------------------------------------------------------------------
+ * Element messages: the one place that builds and parses them
+ *
+ * Every analysis element posts an element message whose structure is built here, and tools and
+ * tests parse them here. Each structure carries "timestamp", "stream-time", "running-time"
+ * (guint64 ns, GST_CLOCK_TIME_NONE when unknown) as gst-plugins-good's level does.
+ * ------------------------------------------------------------------------------------------- */
+
+#define GST_TREE_STEREO_MESSAGE_EXGSEGMENT "exgsegment"
+#define GST_TREE_STEREO_MESSAGE_SIFTMATCH "siftmatch"
+#define GST_TREE_STEREO_MESSAGE_STEREODEPTH "stereodepth"
+#define GST_TREE_STEREO_MESSAGE_TREEMETRICS "treemetrics"
+
+typedef struct {
+  GstClockTime timestamp;
+  GstClockTime stream_time;
+  GstClockTime running_time;
+} GstTreeStereoTimes;
+
+/* Fills @times from @buffer's PTS and @segment (which may be NULL: only the timestamp is set). */
+void gst_tree_stereo_times_from_buffer (GstTreeStereoTimes *times, GstBuffer *buffer,
+    const GstSegment *segment);
+
+/* exgsegment: fields "n-views", "index" (string), and per view "left-" / "right-" prefixed
+ * (or no prefix with one view): "present", "threshold", "area", "perimeter", "complexity",
+ * "centroid-x", "centroid-y", "bbox-x", "bbox-y", "bbox-width", "bbox-height", "regions". */
+GstStructure *gst_tree_stereo_vegetation_message_structure (const GstTreeStereoVegetationMeta *meta,
+    const GstTreeStereoTimes *times);
+/* Parses into @meta's figures (no mask, no contour). Returns FALSE on a malformed structure. */
+gboolean gst_tree_stereo_vegetation_message_parse (const GstStructure *s,
+    GstTreeStereoVegetationMeta *meta, GstTreeStereoTimes *times);
+
+/* siftmatch: "method" (string), "keypoints-left", "keypoints-right", "matches", and the
+ * per-constraint rejection counts and timing below. */
+typedef struct {
+  GstTreeStereoMatchMethod method;
+  guint keypoints_left;
+  guint keypoints_right;
+  guint matches;
+  guint candidates_tested;
+  guint rejected_ratio;
+  guint rejected_epipolar;
+  guint rejected_disparity;
+  guint rejected_mutual;
+  guint rejected_refine;
+  gdouble detect_ms;
+  gdouble match_ms;
+  gdouble refine_ms;
+  gdouble total_ms;
+} GstTreeStereoMatchStats;
+GstStructure *gst_tree_stereo_match_message_structure (const GstTreeStereoMatchStats *stats,
+    const GstTreeStereoTimes *times);
+gboolean gst_tree_stereo_match_message_parse (const GstStructure *s,
+    GstTreeStereoMatchStats *stats, GstTreeStereoTimes *times);
+
+/* stereodepth: "mode" ("sparse"/"dense"), "points", "valid", "dropped-range",
+ * "dropped-outlier", "median-depth", "mad-depth", "p05-depth", "p95-depth" (mm). */
+GstStructure *gst_tree_stereo_depth_message_structure (gboolean dense,
+    const GstTreeStereoDepthStats *stats, const GstTreeStereoTimes *times);
+gboolean gst_tree_stereo_depth_message_parse (const GstStructure *s, gboolean *dense,
+    GstTreeStereoDepthStats *stats, GstTreeStereoTimes *times);
+
+/* treemetrics: "tree-present"; when present also "distance", "height", "width", "thickness"
+ * (m), "area" (m2), "perimeter" (m), "complexity", "centroid-x/-y/-z" (m), "clipped" (flags)
+ * and "clipped-top/-bottom/-left/-right" (booleans), "points", "matches", "bands" (a
+ * GstValueArray of GstStructures "band" with "top", "bottom", "left", "right", "width",
+ * "depth", "present"), and the same figures smoothed under "smoothed-" names when
+ * @smoothed is not NULL. */
+GstStructure *gst_tree_stereo_metrics_message_structure (const GstTreeStereoMetrics *metrics,
+    const GstTreeStereoMetrics *smoothed, const GstTreeStereoTimes *times);
+/* Parses the raw figures into @metrics (cleared first; free with gst_tree_stereo_metrics_clear),
+ * the smoothed ones into @smoothed when not NULL. */
+gboolean gst_tree_stereo_metrics_message_parse (const GstStructure *s,
+    GstTreeStereoMetrics *metrics, GstTreeStereoMetrics *smoothed, GstTreeStereoTimes *times);
+
+/* Enum <-> string names used in messages and properties. */
+const gchar *gst_tree_stereo_vegetation_index_to_string (GstTreeStereoVegetationIndex index);
+gboolean gst_tree_stereo_vegetation_index_from_string (const gchar *s,
+    GstTreeStereoVegetationIndex *index);
+const gchar *gst_tree_stereo_match_method_to_string (GstTreeStereoMatchMethod method);
+gboolean gst_tree_stereo_match_method_from_string (const gchar *s,
+    GstTreeStereoMatchMethod *method);
+
+G_END_DECLS
+
+#endif /* __GST_TREE_STEREO_META_H__ */

@@ -1,0 +1,55 @@
+// Stereo calibration: the data, reading and writing it, and checking it.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include <stdexcept>
+#include <string>
+
+namespace treestereo {
+
+// A calibrated stereo pair in OpenCV's conventions (the layout of OpenCV's stereo_calib sample).
+// Lengths in millimetres. R and T take a point from the left camera's frame to the right's:
+// X_right = R * X_left + T, so for a right camera to the right of the left one T.x < 0.
+struct StereoCalibration {
+  cv::Size image_size;   // the size the intrinsics refer to
+  cv::Mat M1, D1;        // left camera matrix 3x3 (CV_64F), distortion 1xN (N = 4, 5, 8, 12, 14)
+  cv::Mat M2, D2;        // right camera
+  cv::Mat R, T;          // rotation 3x3, translation 3x1 (mm)
+  // Optional: the rectification OpenCV's stereoRectify computed, as stored beside the above.
+  cv::Mat R1, R2, P1, P2, Q;
+  double pixel_size_um = 0.0; // optional, 0 = unknown
+
+  double baseline_mm() const; // |T|
+  bool has_rectification() const { return !R1.empty() && !P1.empty(); }
+};
+
+// Every problem with a calibration is one of these: where (file, key) and what.
+class CalibrationError : public std::runtime_error {
+public:
+  CalibrationError(std::string file, std::string key, const std::string &problem);
+  const std::string &file() const { return file_; }
+  const std::string &key() const { return key_; }
+
+private:
+  std::string file_, key_;
+};
+
+// Loads a calibration. `spec` is either one OpenCV FileStorage file (.yml/.yaml/.xml, optionally
+// .gz) or two ROS camera_info YAML files separated by ';' ("left.yaml;right.yaml").
+// The result is validated; throws CalibrationError.
+StereoCalibration load_calibration(const std::string &spec);
+
+// Writes an OpenCV FileStorage file (format from the extension: .yml/.yaml or .xml).
+void save_calibration(const StereoCalibration &calib, const std::string &path);
+
+// Checks shapes, finiteness, that R is a rotation, that the baseline is not zero and that the
+// image size is set. `source` names the file in the messages. Throws CalibrationError.
+void validate_calibration(const StereoCalibration &calib, const std::string &source);
+
+// The same rig at another image size. Only a pure scale (binning, a smaller capture) is allowed:
+// both axes by the same factor within half a pixel. Throws CalibrationError naming both sizes.
+StereoCalibration scale_calibration(const StereoCalibration &calib, cv::Size new_size,
+                                    const std::string &source = "calibration");
+
+} // namespace treestereo

@@ -1,0 +1,57 @@
+#include "treestereo/stats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace treestereo {
+
+double percentile(std::vector<double> &v, double p)
+{
+  if (v.empty())
+    return 0.0;
+  p = std::clamp(p, 0.0, 100.0);
+  const double rank = p / 100.0 * double(v.size() - 1);
+  const std::size_t lo = std::size_t(std::floor(rank));
+  const std::size_t hi = std::min(lo + 1, v.size() - 1);
+  std::nth_element(v.begin(), v.begin() + lo, v.end());
+  const double a = v[lo];
+  if (hi == lo)
+    return a;
+  // The next order statistic is the minimum of the part above lo.
+  const double b = *std::min_element(v.begin() + lo + 1, v.end());
+  return a + (rank - double(lo)) * (b - a);
+}
+
+double median(std::vector<double> &v) { return percentile(v, 50.0); }
+
+double mad(std::vector<double> &v, double med)
+{
+  std::vector<double> dev(v.size());
+  std::transform(v.begin(), v.end(), dev.begin(), [med](double x) { return std::abs(x - med); });
+  return median(dev);
+}
+
+Summary summarize(const std::vector<double> &values)
+{
+  Summary s;
+  s.n = values.size();
+  if (values.empty())
+    return s;
+  std::vector<double> v(values);
+  s.p05 = percentile(v, 5.0);
+  s.p95 = percentile(v, 95.0);
+  s.median = median(v);
+  s.mad = mad(v, s.median);
+  auto [mn, mx] = std::minmax_element(v.begin(), v.end());
+  s.min = *mn;
+  s.max = *mx;
+  s.mean = std::accumulate(v.begin(), v.end(), 0.0) / double(v.size());
+  double ss = 0.0;
+  for (double x : v)
+    ss += (x - s.mean) * (x - s.mean);
+  s.stddev = v.size() > 1 ? std::sqrt(ss / double(v.size() - 1)) : 0.0;
+  return s;
+}
+
+} // namespace treestereo

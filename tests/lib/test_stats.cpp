@@ -1,0 +1,37 @@
+#include "treestereo/stats.hpp"
+
+#include <gtest/gtest.h>
+
+using namespace treestereo;
+
+TEST(Stats, PercentileInterpolatesLikeNumpy)
+{
+  std::vector<double> v{4, 1, 3, 2, 5};
+  EXPECT_DOUBLE_EQ(percentile(v, 0), 1.0);
+  EXPECT_DOUBLE_EQ(percentile(v, 100), 5.0);
+  EXPECT_DOUBLE_EQ(percentile(v, 50), 3.0);
+  // numpy.percentile([1,2,3,4,5], 5) = 1.2, 95 -> 4.8
+  EXPECT_NEAR(percentile(v, 5), 1.2, 1e-12);
+  EXPECT_NEAR(percentile(v, 95), 4.8, 1e-12);
+  std::vector<double> even{10, 0};
+  EXPECT_DOUBLE_EQ(median(even), 5.0);
+}
+
+TEST(Stats, EmptyGivesZeroNotNaN)
+{
+  std::vector<double> v;
+  EXPECT_EQ(percentile(v, 50), 0.0);
+  Summary s = summarize(v);
+  EXPECT_EQ(s.n, 0u);
+  EXPECT_EQ(s.median, 0.0);
+}
+
+TEST(Stats, MadIgnoresOneOutlier)
+{
+  std::vector<double> v{10, 11, 9, 10, 10, 1000};
+  Summary s = summarize(v);
+  EXPECT_DOUBLE_EQ(s.median, 10.0);
+  EXPECT_DOUBLE_EQ(s.mad, 0.5);
+  EXPECT_EQ(s.min, 9.0);
+  EXPECT_EQ(s.max, 1000.0);
+}
