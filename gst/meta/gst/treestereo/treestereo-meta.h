@@ -460,7 +460,8 @@ void gst_tree_stereo_times_from_buffer (GstTreeStereoTimes *times, GstBuffer *bu
  * "centroid-x", "centroid-y", "bbox-x", "bbox-y", "bbox-width", "bbox-height", "regions". */
 GstStructure *gst_tree_stereo_vegetation_message_structure (const GstTreeStereoVegetationMeta *meta,
     const GstTreeStereoTimes *times);
-/* Parses into @meta's figures (no mask, no contour). Returns FALSE on a malformed structure. */
+/* Parses into @meta's figures (no mask, no contour). @meta must be zero-initialised or hold
+ * views from an earlier parse: they are cleared first. Returns FALSE on a malformed structure. */
 gboolean gst_tree_stereo_vegetation_message_parse (const GstStructure *s,
     GstTreeStereoVegetationMeta *meta, GstTreeStereoTimes *times);
 
@@ -502,8 +503,9 @@ gboolean gst_tree_stereo_depth_message_parse (const GstStructure *s, gboolean *d
  * @smoothed is not NULL. */
 GstStructure *gst_tree_stereo_metrics_message_structure (const GstTreeStereoMetrics *metrics,
     const GstTreeStereoMetrics *smoothed, const GstTreeStereoTimes *times);
-/* Parses the raw figures into @metrics (cleared first; free with gst_tree_stereo_metrics_clear),
- * the smoothed ones into @smoothed when not NULL. */
+/* Parses the raw figures into @metrics, the smoothed ones into @smoothed when not NULL. Both
+ * must be zero-initialised or from an earlier parse (they are cleared first); free with
+ * gst_tree_stereo_metrics_clear. Returns FALSE on a malformed structure. */
 gboolean gst_tree_stereo_metrics_message_parse (const GstStructure *s,
     GstTreeStereoMetrics *metrics, GstTreeStereoMetrics *smoothed, GstTreeStereoTimes *times);
 

@@ -1,0 +1,520 @@
+/* Unit tests of the meta library: add, get, copy with gst_buffer_copy (every field), scale
+ * transform, free, and the element messages' round trip. */
+#include <gst/check/gstcheck.h>
+#include <gst/treestereo/treestereo-meta.h>
+
+#include <string.h>
+
+static void
+fill_geometry (GstTreeStereoGeometryMeta * g)
+{
+  g->view_width = 640;
+  g->view_height = 480;
+  g->side_by_side = TRUE;
+  g->rectified = TRUE;
+  g->fx[0] = g->fx[1] = 865.25;
+  g->fy[0] = g->fy[1] = 866.5;
+  g->cx[0] = 320.5;
+  g->cx[1] = 318.25;
+  g->cy[0] = g->cy[1] = 240.75;
+  g->baseline_mm = 50.0;
+  for (int i = 0; i < 16; i++)
+    g->Q[i] = 0.5 * i;
+  for (int i = 0; i < 9; i++)
+    g->R1[i] = (i % 4 == 0) ? 1.0 : 0.001 * i;
+  g->pts[0] = 40 * GST_MSECOND;
+  g->pts[1] = 41 * GST_MSECOND;
+  g->skew_ns = GST_MSECOND;
+}
+
+/* Applies a video scale transform from in_w x in_h to out_w x out_h onto a new buffer. */
+static GstBuffer *
+scale_buffer (GstBuffer * in, gint in_w, gint in_h, gint out_w, gint out_h)
+{
+  GstVideoInfo in_info, out_info;
+  GstVideoMetaTransform trans = { &in_info, &out_info };
+  GstBuffer *out = gst_buffer_new ();
+  gpointer state = NULL;
+  GstMeta *meta;
+
+  gst_video_info_set_format (&in_info, GST_VIDEO_FORMAT_RGB, in_w, in_h);
+  gst_video_info_set_format (&out_info, GST_VIDEO_FORMAT_RGB, out_w, out_h);
+  while ((meta = gst_buffer_iterate_meta (in, &state))) {
+    if (meta->info->transform_func)
+      meta->info->transform_func (out, meta, in, gst_video_meta_transform_scale_get_quark (),
+          &trans);
+  }
+  return out;
+}
+
+GST_START_TEST (test_geometry_meta)
+{
+  GstBuffer *buf = gst_buffer_new (), *copy, *scaled;
+  GstTreeStereoGeometryMeta *g, *c;
+
+  g = gst_buffer_add_tree_stereo_geometry_meta (buf);
+  fail_unless (g != NULL);
+  fail_unless_equals_uint64 (g->pts[0], GST_CLOCK_TIME_NONE);
+  fail_unless_equals_int (g->view_width, 0);
+  fill_geometry (g);
+  fail_unless (gst_buffer_get_tree_stereo_geometry_meta (buf) == g);
+  fail_unless (gst_meta_api_type_has_tag (GST_TREE_STEREO_GEOMETRY_META_API_TYPE,
+          g_quark_from_static_string (GST_META_TAG_VIDEO_SIZE_STR)));
+
+  copy = gst_buffer_copy (buf);
+  c = gst_buffer_get_tree_stereo_geometry_meta (copy);
+  fail_unless (c != NULL && c != g);
+  fail_unless (memcmp ((guint8 *) c + sizeof (GstMeta), (guint8 *) g + sizeof (GstMeta),
+          sizeof (*g) - sizeof (GstMeta)) == 0);
+  fail_unless_equals_float (gst_tree_stereo_geometry_meta_doffs (c), 2.25);
+
+  /* side-by-side 1280x480 scaled to 640x240: everything in pixels halves */
+  scaled = scale_buffer (buf, 1280, 480, 640, 240);
+  c = gst_buffer_get_tree_stereo_geometry_meta (scaled);
+  fail_unless (c != NULL);
+  fail_unless_equals_int (c->view_width, 320);
+  fail_unless_equals_int (c->view_height, 240);
+  fail_unless_equals_float (c->fx[0], 865.25 / 2);
+  fail_unless_equals_float (c->cx[1], 318.25 / 2);
+  fail_unless_equals_float (c->baseline_mm, 50.0);
+  /* Q stays consistent: depth of disparity d' = d/2 equals depth of d at full size */
+  {
+    gdouble d = 20.0, z_full, z_half;
+    z_full = g->fx[0] * g->baseline_mm / (d - (g->cx[0] - g->cx[1]));
+    z_half = c->Q[11] / (c->Q[14] * (d / 2) + c->Q[15]);
+    fail_unless (fabs (z_full - z_half) < 1e-9 * z_full);
+  }
+  gst_buffer_unref (scaled);
+  gst_buffer_unref (copy);
+  gst_buffer_unref (buf);
+}
+
+GST_END_TEST;
+
+static GstBuffer *
+make_mask (guint w, guint h, guint stride)
+{
+  GstBuffer *mask = gst_buffer_new_allocate (NULL, (gsize) stride * h, NULL);
+  GstMapInfo map;
+  gst_buffer_map (mask, &map, GST_MAP_WRITE);
+  memset (map.data, 0, map.size);
+  /* left half canopy */
+  for (guint y = 0; y < h; y++)
+    memset (map.data + y * stride, 255, w / 2);
+  gst_buffer_unmap (mask, &map);
+  return mask;
+}
+
+GST_START_TEST (test_vegetation_meta)
+{
+  GstBuffer *buf = gst_buffer_new (), *copy, *scaled, *mask = make_mask (64, 48, 64);
+  GstTreeStereoVegetationMeta *v, *c;
+  gint32 contour[] = { 0, 0, 31, 0, 31, 47, 0, 47 };
+  GstMapInfo map;
+
+  v = gst_buffer_add_tree_stereo_vegetation_meta (buf, 2);
+  fail_unless (v != NULL);
+  fail_unless_equals_int (v->n_views, 2);
+  v->index = GST_TREE_STEREO_INDEX_EXG_EXR;
+  for (guint i = 0; i < 2; i++) {
+    GstTreeStereoVegetationView *w = &v->views[i];
+    w->present = TRUE;
+    w->threshold = 12.5 + i;
+    w->area_px = 1536;
+    w->perimeter_px = 158;
+    w->complexity = 1.29;
+    w->centroid_x = 15.5 + i;
+    w->centroid_y = 23.5;
+    w->bbox_x = 0;
+    w->bbox_y = 0;
+    w->bbox_width = 32;
+    w->bbox_height = 48;
+    w->n_regions = 1;
+    gst_tree_stereo_vegetation_view_set_contour (w, contour, 4);
+    gst_tree_stereo_vegetation_view_set_mask (w, mask, 64, 48, 64);
+  }
+  gst_buffer_unref (mask);
+
+  copy = gst_buffer_copy (buf);
+  c = gst_buffer_get_tree_stereo_vegetation_meta (copy);
+  fail_unless (c != NULL && c != v);
+  fail_unless_equals_int (c->index, GST_TREE_STEREO_INDEX_EXG_EXR);
+  for (guint i = 0; i < 2; i++) {
+    fail_unless (c->views[i].present);
+    fail_unless_equals_float (c->views[i].threshold, 12.5 + i);
+    fail_unless_equals_float (c->views[i].area_px, 1536);
+    fail_unless_equals_float (c->views[i].perimeter_px, 158);
+    fail_unless_equals_float (c->views[i].complexity, 1.29);
+    fail_unless_equals_float (c->views[i].centroid_x, 15.5 + i);
+    fail_unless_equals_float (c->views[i].centroid_y, 23.5);
+    fail_unless_equals_int (c->views[i].bbox_width, 32);
+    fail_unless_equals_int (c->views[i].bbox_height, 48);
+    fail_unless_equals_int (c->views[i].n_regions, 1);
+    fail_unless_equals_int (c->views[i].n_contour, 4);
+    fail_unless (c->views[i].contour != v->views[i].contour);
+    fail_unless (memcmp (c->views[i].contour, contour, sizeof contour) == 0);
+    fail_unless (c->views[i].mask == v->views[i].mask);
+    fail_unless_equals_int (c->views[i].mask_width, 64);
+  }
+
+  scaled = scale_buffer (buf, 128, 48, 64, 24);
+  c = gst_buffer_get_tree_stereo_vegetation_meta (scaled);
+  fail_unless (c != NULL);
+  fail_unless_equals_float (c->views[0].area_px, 1536 / 4.0);
+  fail_unless_equals_float (c->views[0].centroid_x, 15.5 / 2);
+  fail_unless_equals_int (c->views[0].contour[2], 16);
+  fail_unless_equals_int (c->views[0].mask_width, 32);
+  fail_unless_equals_int (c->views[0].mask_height, 24);
+  fail_unless (gst_buffer_map (c->views[0].mask, &map, GST_MAP_READ));
+  fail_unless_equals_int (map.size, 32 * 24);
+  fail_unless_equals_int (map.data[5 * 32 + 15], 255);
+  fail_unless_equals_int (map.data[5 * 32 + 16], 0);
+  gst_buffer_unmap (c->views[0].mask, &map);
+
+  gst_buffer_unref (scaled);
+  gst_buffer_unref (copy);
+  gst_buffer_unref (buf);
+}
+
+GST_END_TEST;
+
+GST_START_TEST (test_matches_and_points_meta)
+{
+  GstBuffer *buf = gst_buffer_new (), *copy, *scaled, *depth;
+  GstTreeStereoMatch m[3] = { {10, 20, 5, 20.5f, 0.1f}, {100, 200, 90, 200, 0.2f},
+  {1, 2, 0.5f, 2, 0.3f}
+  };
+  GstTreeStereoPoint p[2] = { {-100, 50, 2000, 0, TRUE}, {10, 20, 5000, 2, FALSE} };
+  GstTreeStereoDepthStats st = { 2, 1, 1, 0, 2000, 0, 2000, 2000 };
+  GstTreeStereoMatchesMeta *mm, *mc;
+  GstTreeStereoPointsMeta *pm, *pc;
+
+  mm = gst_buffer_add_tree_stereo_matches_meta (buf, GST_TREE_STEREO_MATCH_COSINE_NORM, 300,
+      280, m, 3);
+  fail_unless (mm != NULL && mm->matches != m);
+  pm = gst_buffer_add_tree_stereo_points_meta (buf, p, 2, &st);
+  depth = gst_buffer_new_allocate (NULL, 8 * 4 * 2, NULL);
+  gst_tree_stereo_points_meta_set_depth_map (pm, depth, 3, 4, 8, 4, 16);
+  gst_buffer_unref (depth);
+  pm->dense = TRUE;
+
+  copy = gst_buffer_copy (buf);
+  mc = gst_buffer_get_tree_stereo_matches_meta (copy);
+  fail_unless (mc != NULL && mc != mm);
+  fail_unless_equals_int (mc->method, GST_TREE_STEREO_MATCH_COSINE_NORM);
+  fail_unless_equals_int (mc->n_keypoints[0], 300);
+  fail_unless_equals_int (mc->n_keypoints[1], 280);
+  fail_unless_equals_int (mc->n_matches, 3);
+  fail_unless (memcmp (mc->matches, m, sizeof m) == 0);
+  pc = gst_buffer_get_tree_stereo_points_meta (copy);
+  fail_unless (pc != NULL && pc != pm);
+  fail_unless_equals_int (pc->n_points, 2);
+  fail_unless (memcmp (pc->points, p, sizeof p) == 0);
+  fail_unless (memcmp (&pc->stats, &st, sizeof st) == 0);
+  fail_unless (pc->dense);
+  fail_unless (pc->depth_map == pm->depth_map);
+  fail_unless_equals_int (pc->depth_x, 3);
+  fail_unless_equals_int (pc->depth_y, 4);
+  fail_unless_equals_int (pc->depth_stride, 16);
+
+  scaled = scale_buffer (buf, 200, 100, 400, 200);
+  mc = gst_buffer_get_tree_stereo_matches_meta (scaled);
+  fail_unless_equals_float (mc->matches[1].xl, 200);
+  fail_unless_equals_float (mc->matches[1].yr, 400);
+  fail_unless_equals_float (mc->matches[1].score, 0.2f);
+  pc = gst_buffer_get_tree_stereo_points_meta (scaled);
+  fail_unless_equals_float (pc->points[0].z, 2000);
+  fail_unless (pc->depth_map == NULL);
+
+  gst_buffer_unref (scaled);
+  gst_buffer_unref (copy);
+  gst_buffer_unref (buf);
+}
+
+GST_END_TEST;
+
+static void
+fill_metrics (GstTreeStereoMetrics * m, gdouble k)
+{
+  memset (m, 0, sizeof (*m));
+  m->tree_present = TRUE;
+  m->distance_m = 2.0 * k;
+  m->height_m = 1.215 * k;
+  m->width_m = 0.48 * k;
+  m->thickness_m = 0.3 * k;
+  m->area_m2 = 0.45 * k;
+  m->perimeter_m = 3.1 * k;
+  m->complexity = 1.7 * k;
+  m->centroid_m[0] = -0.1 * k;
+  m->centroid_m[1] = 0.2 * k;
+  m->centroid_m[2] = 2.1 * k;
+  m->clipped = GST_TREE_STEREO_CLIPPED_TOP | GST_TREE_STEREO_CLIPPED_RIGHT;
+  m->n_points = 321;
+  m->n_matches = 400;
+  gst_tree_stereo_metrics_set_n_bands (m, 4);
+  for (guint i = 0; i < 4; i++) {
+    m->bands[i].present = i != 2;
+    m->bands[i].top_m = -0.6 + 0.3 * i;
+    m->bands[i].bottom_m = -0.3 + 0.3 * i;
+    m->bands[i].left_m = -0.2 * k;
+    m->bands[i].right_m = 0.25 * k;
+    m->bands[i].width_m = 0.45 * k;
+    m->bands[i].depth_m = 1.9 + 0.01 * i;
+  }
+}
+
+static void
+assert_metrics_equal (const GstTreeStereoMetrics * a, const GstTreeStereoMetrics * b)
+{
+  fail_unless_equals_int (a->tree_present, b->tree_present);
+  fail_unless_equals_float (a->distance_m, b->distance_m);
+  fail_unless_equals_float (a->height_m, b->height_m);
+  fail_unless_equals_float (a->width_m, b->width_m);
+  fail_unless_equals_float (a->thickness_m, b->thickness_m);
+  fail_unless_equals_float (a->area_m2, b->area_m2);
+  fail_unless_equals_float (a->perimeter_m, b->perimeter_m);
+  fail_unless_equals_float (a->complexity, b->complexity);
+  for (int i = 0; i < 3; i++)
+    fail_unless_equals_float (a->centroid_m[i], b->centroid_m[i]);
+  fail_unless_equals_int (a->clipped, b->clipped);
+  fail_unless_equals_int (a->n_points, b->n_points);
+  fail_unless_equals_int (a->n_matches, b->n_matches);
+  fail_unless_equals_int (a->n_bands, b->n_bands);
+  if (a->n_bands)
+    fail_unless (memcmp (a->bands, b->bands, sizeof (GstTreeStereoBand) * a->n_bands) == 0);
+}
+
+GST_START_TEST (test_metrics_and_truth_meta)
+{
+  GstBuffer *buf = gst_buffer_new (), *copy, *scaled, *mask;
+  GstTreeStereoMetrics raw, smooth;
+  GstTreeStereoMetricsMeta *mm, *mc;
+  GstTreeStereoTruth t = { GST_TREE_STEREO_RIGHT, 7, 42, 2.05, 1.9, 2.3, 0.4, 1.2, 0.9, 2.3,
+    {0.01, -0.2, 2.1}, 0.35, 50.0
+  };
+  GstTreeStereoTruthMeta *tm, *tc;
+
+  fill_metrics (&raw, 1.0);
+  fill_metrics (&smooth, 1.01);
+  mm = gst_buffer_add_tree_stereo_metrics_meta (buf, &raw, &smooth);
+  fail_unless (mm != NULL && mm->metrics.bands != raw.bands);
+  mask = gst_buffer_new_allocate (NULL, 16, NULL);
+  tm = gst_buffer_add_tree_stereo_truth_meta (buf, &t, NULL, mask, 4, 4);
+  fail_unless (tm != NULL);
+  gst_buffer_unref (mask);
+
+  copy = gst_buffer_copy (buf);
+  mc = gst_buffer_get_tree_stereo_metrics_meta (copy);
+  fail_unless (mc != NULL && mc != mm);
+  assert_metrics_equal (&mc->metrics, &raw);
+  assert_metrics_equal (&mc->smoothed, &smooth);
+  fail_unless (mc->metrics.bands != mm->metrics.bands);
+  tc = gst_buffer_get_tree_stereo_truth_meta (copy);
+  fail_unless (tc != NULL && tc != tm);
+  fail_unless (memcmp (&tc->truth, &t, sizeof t) == 0);
+  fail_unless (tc->mask == tm->mask && tc->depth == NULL);
+  fail_unless_equals_int (tc->width, 4);
+
+  /* metres survive a scale unchanged; per-pixel truth maps do not */
+  scaled = scale_buffer (buf, 100, 100, 50, 50);
+  mc = gst_buffer_get_tree_stereo_metrics_meta (scaled);
+  fail_unless (mc != NULL);
+  assert_metrics_equal (&mc->metrics, &raw);
+  tc = gst_buffer_get_tree_stereo_truth_meta (scaled);
+  fail_unless (tc != NULL && tc->mask == NULL);
+  fail_unless_equals_float (tc->truth.distance_m, 2.05);
+
+  /* no smoothed given: the smoothed figures equal the raw ones */
+  gst_buffer_unref (scaled);
+  scaled = gst_buffer_new ();
+  mc = gst_buffer_add_tree_stereo_metrics_meta (scaled, &raw, NULL);
+  assert_metrics_equal (&mc->smoothed, &raw);
+
+  gst_tree_stereo_metrics_clear (&raw);
+  gst_tree_stereo_metrics_clear (&smooth);
+  fail_unless (raw.bands == NULL && raw.n_bands == 0 && !raw.tree_present);
+  gst_buffer_unref (scaled);
+  gst_buffer_unref (copy);
+  gst_buffer_unref (buf);
+}
+
+GST_END_TEST;
+
+GST_START_TEST (test_metrics_message_round_trip)
+{
+  GstTreeStereoMetrics raw, smooth, r2 = { 0 }, s2 = { 0 };
+  GstTreeStereoTimes t = { 5 * GST_SECOND, 4 * GST_SECOND, 3 * GST_SECOND }, t2;
+  GstStructure *s;
+  gchar *str;
+
+  fill_metrics (&raw, 1.0);
+  fill_metrics (&smooth, 0.99);
+  s = gst_tree_stereo_metrics_message_structure (&raw, &smooth, &t);
+  fail_unless (gst_structure_has_name (s, "treemetrics"));
+  /* serialisable, as gst-launch -m prints it */
+  str = gst_structure_to_string (s);
+  fail_unless (strstr (str, "distance=(double)2") != NULL);
+  fail_unless (strstr (str, "clipped-top=(boolean)true") != NULL);
+  g_free (str);
+  fail_unless (gst_tree_stereo_metrics_message_parse (s, &r2, &s2, &t2));
+  assert_metrics_equal (&r2, &raw);
+  assert_metrics_equal (&s2, &smooth);
+  fail_unless_equals_uint64 (t2.timestamp, t.timestamp);
+  fail_unless_equals_uint64 (t2.stream_time, t.stream_time);
+  fail_unless_equals_uint64 (t2.running_time, t.running_time);
+  gst_structure_free (s);
+
+  /* absent tree: no figures at all, and parsing gives zeros, not stale values */
+  gst_tree_stereo_metrics_clear (&raw);
+  s = gst_tree_stereo_metrics_message_structure (&raw, NULL, NULL);
+  fail_unless (!gst_structure_has_field (s, "distance"));
+  fail_unless (!gst_structure_has_field (s, "bands"));
+  fail_unless (gst_tree_stereo_metrics_message_parse (s, &r2, NULL, &t2));
+  fail_if (r2.tree_present);
+  fail_unless_equals_float (r2.distance_m, 0.0);
+  fail_unless (r2.bands == NULL);
+  fail_unless_equals_uint64 (t2.timestamp, GST_CLOCK_TIME_NONE);
+  gst_structure_free (s);
+
+  /* malformed: wrong name, a missing field */
+  s = gst_structure_new ("treemetrics", "tree-present", G_TYPE_BOOLEAN, TRUE, NULL);
+  fail_if (gst_tree_stereo_metrics_message_parse (s, &r2, NULL, NULL));
+  gst_structure_set_name (s, "other");
+  fail_if (gst_tree_stereo_metrics_message_parse (s, &r2, NULL, NULL));
+  gst_structure_free (s);
+
+  gst_tree_stereo_metrics_clear (&r2);
+  gst_tree_stereo_metrics_clear (&s2);
+  gst_tree_stereo_metrics_clear (&smooth);
+}
+
+GST_END_TEST;
+
+GST_START_TEST (test_other_messages_round_trip)
+{
+  GstTreeStereoVegetationMeta v = { 0 }, v2 = { 0 };
+  GstTreeStereoMatchStats ms = { GST_TREE_STEREO_MATCH_COSINE_NORM, 500, 480, 300, 9000, 12,
+    34, 5, 6, 7, 20.5, 3.25, 1.5, 26.0
+  }, ms2;
+  GstTreeStereoDepthStats ds = { 300, 290, 4, 6, 2001.5, 12.25, 1900, 2200 }, ds2;
+  GstTreeStereoTimes t = { 1, 2, 3 }, t2;
+  GstStructure *s;
+  gboolean dense;
+
+  /* vegetation, stereo */
+  v.n_views = 2;
+  v.index = GST_TREE_STEREO_INDEX_EXG_NORM;
+  for (int i = 0; i < 2; i++) {
+    v.views[i].present = i == 0;
+    v.views[i].threshold = 0.1 * (i + 1);
+    v.views[i].area_px = 1000 + i;
+    v.views[i].perimeter_px = 120 + i;
+    v.views[i].complexity = 1.1 + i;
+    v.views[i].centroid_x = 50.5 + i;
+    v.views[i].centroid_y = 60.5 + i;
+    v.views[i].bbox_x = 10 + i;
+    v.views[i].bbox_y = 11 + i;
+    v.views[i].bbox_width = 80 + i;
+    v.views[i].bbox_height = 90 + i;
+    v.views[i].n_regions = 1 + i;
+  }
+  s = gst_tree_stereo_vegetation_message_structure (&v, &t);
+  fail_unless (gst_structure_has_field (s, "left-area"));
+  fail_unless (gst_structure_has_field (s, "right-bbox-height"));
+  fail_unless (gst_tree_stereo_vegetation_message_parse (s, &v2, &t2));
+  fail_unless_equals_int (v2.n_views, 2);
+  fail_unless_equals_int (v2.index, GST_TREE_STEREO_INDEX_EXG_NORM);
+  fail_unless (memcmp (&v2.views, &v.views, sizeof v.views) == 0);
+  fail_unless_equals_uint64 (t2.running_time, 3);
+  gst_structure_free (s);
+
+  /* vegetation, one view: no prefix */
+  v.n_views = 1;
+  s = gst_tree_stereo_vegetation_message_structure (&v, &t);
+  fail_unless (gst_structure_has_field (s, "area"));
+  fail_if (gst_structure_has_field (s, "left-area"));
+  fail_unless (gst_tree_stereo_vegetation_message_parse (s, &v2, NULL));
+  fail_unless_equals_int (v2.n_views, 1);
+  fail_unless (memcmp (&v2.views[0], &v.views[0], sizeof v.views[0]) == 0);
+  gst_structure_remove_field (s, "complexity");
+  fail_if (gst_tree_stereo_vegetation_message_parse (s, &v2, NULL));
+  gst_structure_free (s);
+
+  s = gst_tree_stereo_match_message_structure (&ms, &t);
+  fail_unless_equals_string (gst_structure_get_string (s, "method"), "cosine-norm");
+  memset (&ms2, 0, sizeof ms2);
+  fail_unless (gst_tree_stereo_match_message_parse (s, &ms2, &t2));
+  fail_unless (memcmp (&ms2, &ms, sizeof ms) == 0);
+  gst_structure_set (s, "method", G_TYPE_STRING, "bogus", NULL);
+  fail_if (gst_tree_stereo_match_message_parse (s, &ms2, NULL));
+  gst_structure_free (s);
+
+  s = gst_tree_stereo_depth_message_structure (TRUE, &ds, &t);
+  memset (&ds2, 0, sizeof ds2);
+  fail_unless (gst_tree_stereo_depth_message_parse (s, &dense, &ds2, &t2));
+  fail_unless (dense);
+  fail_unless (memcmp (&ds2, &ds, sizeof ds) == 0);
+  gst_structure_free (s);
+}
+
+GST_END_TEST;
+
+GST_START_TEST (test_times_from_buffer)
+{
+  GstBuffer *buf = gst_buffer_new ();
+  GstSegment seg;
+  GstTreeStereoTimes t;
+
+  gst_segment_init (&seg, GST_FORMAT_TIME);
+  seg.start = GST_SECOND;
+  seg.time = 10 * GST_SECOND;
+  seg.base = 100 * GST_SECOND;
+  GST_BUFFER_PTS (buf) = 3 * GST_SECOND;
+  gst_tree_stereo_times_from_buffer (&t, buf, &seg);
+  fail_unless_equals_uint64 (t.timestamp, 3 * GST_SECOND);
+  fail_unless_equals_uint64 (t.stream_time, 12 * GST_SECOND);
+  fail_unless_equals_uint64 (t.running_time, 102 * GST_SECOND);
+  gst_tree_stereo_times_from_buffer (&t, buf, NULL);
+  fail_unless_equals_uint64 (t.running_time, GST_CLOCK_TIME_NONE);
+  gst_buffer_unref (buf);
+}
+
+GST_END_TEST;
+
+GST_START_TEST (test_enum_names)
+{
+  GstTreeStereoVegetationIndex idx;
+  GstTreeStereoMatchMethod m;
+
+  fail_unless_equals_string (gst_tree_stereo_vegetation_index_to_string
+      (GST_TREE_STEREO_INDEX_EXG_EXR_NORM), "exg-exr-norm");
+  fail_unless (gst_tree_stereo_vegetation_index_from_string ("exg", &idx));
+  fail_unless_equals_int (idx, GST_TREE_STEREO_INDEX_EXG);
+  fail_if (gst_tree_stereo_vegetation_index_from_string ("ndvi", &idx));
+  fail_if (gst_tree_stereo_vegetation_index_from_string (NULL, &idx));
+  fail_unless (gst_tree_stereo_vegetation_index_to_string (99) == NULL);
+  fail_unless (gst_tree_stereo_match_method_from_string ("euclidean", &m));
+  fail_unless_equals_int (m, GST_TREE_STEREO_MATCH_EUCLIDEAN);
+}
+
+GST_END_TEST;
+
+static Suite *
+meta_suite (void)
+{
+  Suite *s = suite_create ("treestereo-meta");
+  TCase *tc = tcase_create ("general");
+
+  suite_add_tcase (s, tc);
+  tcase_add_test (tc, test_geometry_meta);
+  tcase_add_test (tc, test_vegetation_meta);
+  tcase_add_test (tc, test_matches_and_points_meta);
+  tcase_add_test (tc, test_metrics_and_truth_meta);
+  tcase_add_test (tc, test_metrics_message_round_trip);
+  tcase_add_test (tc, test_other_messages_round_trip);
+  tcase_add_test (tc, test_times_from_buffer);
+  tcase_add_test (tc, test_enum_names);
+  return s;
+}
+
+GST_CHECK_MAIN (meta);
