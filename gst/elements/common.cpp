@@ -1,0 +1,191 @@
+#include "common.hpp"
+
+#include <cstring>
+
+GST_DEBUG_CATEGORY_STATIC(treestereo_common_debug);
+#define GST_CAT_DEFAULT treestereo_common_debug
+
+namespace treestereo::gst {
+
+static void ensure_debug_category()
+{
+  static gsize once = 0;
+  if (g_once_init_enter(&once)) {
+    GST_DEBUG_CATEGORY_INIT(treestereo_common_debug, "treestereo", 0, "treestereo common");
+    g_once_init_leave(&once, 1);
+  }
+}
+
+PixelLayout pixel_layout(GstVideoFormat format)
+{
+  switch (format) {
+  case GST_VIDEO_FORMAT_RGB:
+    return {3, 0, 1, 2, true};
+  case GST_VIDEO_FORMAT_BGR:
+    return {3, 2, 1, 0, true};
+  case GST_VIDEO_FORMAT_RGBx:
+  case GST_VIDEO_FORMAT_RGBA:
+    return {4, 0, 1, 2, true};
+  case GST_VIDEO_FORMAT_BGRx:
+  case GST_VIDEO_FORMAT_BGRA:
+    return {4, 2, 1, 0, true};
+  case GST_VIDEO_FORMAT_xRGB:
+  case GST_VIDEO_FORMAT_ARGB:
+    return {4, 1, 2, 3, true};
+  case GST_VIDEO_FORMAT_xBGR:
+  case GST_VIDEO_FORMAT_ABGR:
+    return {4, 3, 2, 1, true};
+  case GST_VIDEO_FORMAT_GRAY8:
+    return {1, 0, 0, 0, false};
+  default:
+    return {};
+  }
+}
+
+cv::Mat frame_mat(const GstVideoFrame *frame)
+{
+  const GstVideoInfo *info = &frame->info;
+  const int channels = pixel_layout(GST_VIDEO_INFO_FORMAT(info)).channels;
+  if (channels == 0)
+    throw std::runtime_error(std::string("unsupported video format ") +
+                             gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(info)));
+  return cv::Mat(GST_VIDEO_INFO_HEIGHT(info), GST_VIDEO_INFO_WIDTH(info), CV_8UC(channels),
+                 GST_VIDEO_FRAME_PLANE_DATA(frame, 0),
+                 static_cast<size_t>(GST_VIDEO_FRAME_PLANE_STRIDE(frame, 0)));
+}
+
+cv::Mat view_mat(const cv::Mat &frame, int view, int n_views)
+{
+  if (n_views == 1)
+    return frame;
+  const int w = frame.cols / 2;
+  return frame(cv::Rect(view == LEFT ? 0 : w, 0, w, frame.rows));
+}
+
+MappedFrame::MappedFrame(const GstVideoInfo *info, GstBuffer *buffer, GstMapFlags flags)
+{
+  mapped_ = gst_video_frame_map(&frame_, const_cast<GstVideoInfo *>(info), buffer, flags);
+}
+
+MappedFrame::~MappedFrame()
+{
+  if (mapped_)
+    gst_video_frame_unmap(&frame_);
+}
+
+int n_views_of(const GstVideoInfo *info)
+{
+  return GST_VIDEO_INFO_MULTIVIEW_MODE(info) == GST_VIDEO_MULTIVIEW_MODE_SIDE_BY_SIDE ? 2 : 1;
+}
+
+StereoGeometry geometry_from_meta(const GstTreeStereoGeometryMeta *m)
+{
+  StereoGeometry g;
+  g.view_size = cv::Size(int(m->view_width), int(m->view_height));
+  g.fx = m->fx[0];
+  g.fy = m->fy[0];
+  g.cx[0] = m->cx[0];
+  g.cx[1] = m->cx[1];
+  g.cy = m->cy[0];
+  g.baseline_mm = m->baseline_mm;
+  for (int i = 0; i < 16; i++)
+    g.Q.val[i] = m->Q[i];
+  for (int i = 0; i < 9; i++)
+    g.R1.val[i] = m->R1[i];
+  return g;
+}
+
+void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *m)
+{
+  m->view_width = guint(g.view_size.width);
+  m->view_height = guint(g.view_size.height);
+  for (int v = 0; v < 2; v++) {
+    m->fx[v] = g.fx;
+    m->fy[v] = g.fy;
+    m->cx[v] = g.cx[v];
+    m->cy[v] = g.cy;
+  }
+  m->baseline_mm = g.baseline_mm;
+  for (int i = 0; i < 16; i++)
+    m->Q[i] = g.Q.val[i];
+  for (int i = 0; i < 9; i++)
+    m->R1[i] = g.R1.val[i];
+}
+
+void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *v)
+{
+  gst_tree_stereo_vegetation_view_clear(v);
+  v->present = s.present;
+  v->threshold = s.threshold;
+  if (!s.present)
+    return;
+  v->area_px = s.area_px;
+  v->perimeter_px = s.perimeter_px;
+  v->complexity = s.complexity;
+  v->centroid_x = s.centroid.x;
+  v->centroid_y = s.centroid.y;
+  v->bbox_x = s.bbox.x;
+  v->bbox_y = s.bbox.y;
+  v->bbox_width = s.bbox.width;
+  v->bbox_height = s.bbox.height;
+  v->n_regions = guint(s.n_regions);
+  std::vector<gint32> xy;
+  xy.reserve(s.contour.size() * 2);
+  for (const cv::Point &p : s.contour) {
+    xy.push_back(p.x);
+    xy.push_back(p.y);
+  }
+  gst_tree_stereo_vegetation_view_set_contour(v, xy.data(), guint(s.contour.size()));
+  if (!s.mask.empty()) {
+    CV_Assert(s.mask.type() == CV_8UC1);
+    const gsize stride = gsize(s.mask.cols);
+    GstBuffer *mask = gst_buffer_new_allocate(nullptr, stride * gsize(s.mask.rows), nullptr);
+    GstMapInfo map;
+    gst_buffer_map(mask, &map, GST_MAP_WRITE);
+    cv::Mat dst(s.mask.rows, s.mask.cols, CV_8UC1, map.data, stride);
+    s.mask.copyTo(dst);
+    gst_buffer_unmap(mask, &map);
+    gst_tree_stereo_vegetation_view_set_mask(v, mask, guint(s.mask.cols), guint(s.mask.rows),
+                                             guint(stride));
+    gst_buffer_unref(mask);
+  }
+}
+
+Silhouette silhouette_from_view(const GstTreeStereoVegetationView *v, GstMapInfo *mask_map)
+{
+  Silhouette s;
+  s.present = v->present;
+  s.threshold = v->threshold;
+  if (!v->present)
+    return s;
+  s.area_px = v->area_px;
+  s.perimeter_px = v->perimeter_px;
+  s.complexity = v->complexity;
+  s.centroid = cv::Point2d(v->centroid_x, v->centroid_y);
+  s.bbox = cv::Rect(v->bbox_x, v->bbox_y, v->bbox_width, v->bbox_height);
+  s.n_regions = int(v->n_regions);
+  s.contour.reserve(v->n_contour);
+  for (guint i = 0; i < v->n_contour; i++)
+    s.contour.emplace_back(v->contour[2 * i], v->contour[2 * i + 1]);
+  if (v->mask && mask_map && gst_buffer_map(v->mask, mask_map, GST_MAP_READ)) {
+    if (mask_map->size >= gsize(v->mask_stride) * (v->mask_height - 1) + v->mask_width)
+      s.mask = cv::Mat(int(v->mask_height), int(v->mask_width), CV_8UC1, mask_map->data,
+                       v->mask_stride);
+    else
+      gst_buffer_unmap(v->mask, mask_map);
+  }
+  return s;
+}
+
+void post_element_message(GstElement *element, GstStructure *s)
+{
+  gst_element_post_message(element, gst_message_new_element(GST_OBJECT(element), s));
+}
+
+void report_exception(GstElement *element, const std::exception &e)
+{
+  ensure_debug_category();
+  GST_ELEMENT_ERROR(element, STREAM, FAILED, ("%s", e.what()), ("%s", e.what()));
+}
+
+} // namespace treestereo::gst

@@ -1,0 +1,89 @@
+/* Shared by the treestereo elements: frames as cv::Mat without copies, meta <-> lib/ type
+ * conversions, and the one way an exception becomes a GST_ELEMENT_ERROR. */
+#pragma once
+
+#include <gst/gst.h>
+#include <gst/video/video.h>
+#include <gst/treestereo/treestereo-meta.h>
+
+#include <opencv2/core.hpp>
+
+#include "treestereo/types.hpp"
+
+#include <exception>
+#include <string>
+
+namespace treestereo::gst {
+
+/* The video formats every analysis element accepts (packed 8-bit, colour or grey). */
+#define TREESTEREO_VIDEO_FORMATS "{ RGB, BGR, RGBx, BGRx, xRGB, xBGR, RGBA, BGRA, ARGB, ABGR, GRAY8 }"
+/* Colour only: what needs a vegetation index. */
+#define TREESTEREO_COLOR_FORMATS "{ RGB, BGR, RGBx, BGRx, xRGB, xBGR, RGBA, BGRA, ARGB, ABGR }"
+
+/* Where R, G and B sit in a packed pixel, and how many bytes it has. */
+struct PixelLayout {
+  int channels = 0;
+  int r = 0, g = 0, b = 0;
+  bool color = false;
+};
+PixelLayout pixel_layout(GstVideoFormat format);
+
+/* Wraps plane 0 of a mapped frame, with its real stride, no copy. */
+cv::Mat frame_mat(const GstVideoFrame *frame);
+
+/* One view of a frame: the left or right half of a side-by-side frame, or the whole frame
+ * when it holds one view. No copy. */
+cv::Mat view_mat(const cv::Mat &frame, int view, int n_views);
+
+/* Maps a buffer as a video frame for the scope. */
+class MappedFrame {
+public:
+  MappedFrame(const GstVideoInfo *info, GstBuffer *buffer, GstMapFlags flags);
+  ~MappedFrame();
+  MappedFrame(const MappedFrame &) = delete;
+  MappedFrame &operator=(const MappedFrame &) = delete;
+  bool ok() const { return mapped_; }
+  GstVideoFrame *frame() { return &frame_; }
+  cv::Mat mat() const { return frame_mat(&frame_); }
+
+private:
+  GstVideoFrame frame_{};
+  bool mapped_ = false;
+};
+
+/* How many views a frame of these caps holds: 2 with multiview-mode=side-by-side, else 1. */
+int n_views_of(const GstVideoInfo *info);
+
+/* Geometry meta <-> lib/ geometry. */
+StereoGeometry geometry_from_meta(const GstTreeStereoGeometryMeta *meta);
+void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *meta);
+
+/* Silhouette (lib/) -> vegetation view of the meta (mask shared as a new GstBuffer). */
+void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *view);
+/* Vegetation view of the meta -> silhouette; the mask is wrapped (valid while @mask_map is). */
+Silhouette silhouette_from_view(const GstTreeStereoVegetationView *view, GstMapInfo *mask_map);
+
+/* Posts an element message built by the meta library (call with no lock held). */
+void post_element_message(GstElement *element, GstStructure *s);
+
+} // namespace treestereo::gst
+
+namespace treestereo::gst {
+
+/* Reports an exception from lib/ as a GST_ELEMENT_ERROR (STREAM/FAILED, its message as the
+ * text a person reads). */
+void report_exception(GstElement *element, const std::exception &e);
+
+/* Runs @f; an exception becomes a GST_ELEMENT_ERROR and @on_error is returned. Every vfunc that
+ * calls lib/ goes through this, so no exception crosses into GStreamer. */
+template <typename R, typename F> R guarded(GstElement *element, R on_error, F &&f)
+{
+  try {
+    return f();
+  } catch (const std::exception &e) {
+    report_exception(element, e);
+    return on_error;
+  }
+}
+
+} // namespace treestereo::gst

@@ -1,0 +1,8 @@
+/* Every element of the plugin, declared once for plugin.cpp. */
+#pragma once
+
+#include <gst/gst.h>
+
+G_BEGIN_DECLS
+GST_ELEMENT_REGISTER_DECLARE(stereorectify);
+G_END_DECLS
