@@ -29,13 +29,16 @@ rig_setup (Rig * rig, const gchar * format, gint w, gint h, gint rw, gint rh, gb
 {
   gchar *calib = example_calibration ();
   gchar *lcaps, *rcaps;
+  GstElement *e = gst_element_factory_make ("stereorectify", NULL);
 
-  rig->left = gst_harness_new_with_padnames ("stereorectify", "left", "src");
-  rig->right = gst_harness_new_with_element (rig->left->element, "right", NULL);
-  rig->bus = gst_bus_new ();
-  gst_element_set_bus (rig->left->element, rig->bus);
-  g_object_set (rig->left->element, "calibration", calib, "rectify", rectify, NULL);
+  /* properties first: the harness starts the element at once */
+  g_object_set (e, "calibration", calib, "rectify", rectify, NULL);
   g_free (calib);
+  rig->bus = gst_bus_new ();
+  gst_element_set_bus (e, rig->bus);
+  rig->left = gst_harness_new_with_element (e, "left", "src");
+  rig->right = gst_harness_new_with_element (e, "right", NULL);
+  gst_object_unref (e);
   lcaps = g_strdup_printf ("video/x-raw,format=%s,width=%d,height=%d,framerate=25/1", format,
       w, h);
   rcaps = g_strdup_printf ("video/x-raw,format=%s,width=%d,height=%d,framerate=25/1", format,
@@ -125,12 +128,13 @@ GST_START_TEST (test_missing_right_frame_drops_one)
   GstMessage *msg;
 
   rig_setup (&rig, "RGB", W, H, W, H, TRUE);
-  /* the right camera misses the frame at 40 ms */
+  /* the right camera misses the frame at 40 ms (an aggregator pad holds one buffer at a time
+   * with no latency set, so the pushes interleave as two cameras' would) */
   push (rig.left, W, H, 1, 0);
-  push (rig.left, W, H, 2, 40 * MS);
-  push (rig.left, W, H, 3, 80 * MS);
   push (rig.right, W, H, 1, 0);
+  push (rig.left, W, H, 2, 40 * MS);
   push (rig.right, W, H, 3, 80 * MS);
+  push (rig.left, W, H, 3, 80 * MS);
 
   out = gst_harness_pull (rig.left);
   fail_unless_equals_uint64 (GST_BUFFER_PTS (out), 0);
