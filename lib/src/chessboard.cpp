@@ -4,7 +4,9 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <stdexcept>
 
 namespace treestereo {
@@ -101,7 +103,19 @@ bool find_chessboard(const cv::Mat &image, cv::Size board, std::vector<cv::Point
   const int flags = static_cast<int>(cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
   if (!cv::findChessboardCorners(gray, board, corners, flags))
     return false;
-  cv::cornerSubPix(gray, corners, cv::Size(11, 11), cv::Size(-1, -1),
+  // The search window must not reach the neighbouring corners, or on a small or oblique board
+  // cornerSubPix drifts towards them: at most ~40% of the closest corner spacing, at most 11.
+  double spacing = 1e9;
+  for (int y = 0; y < board.height; ++y)
+    for (int x = 0; x < board.width; ++x) {
+      const cv::Point2f p = corners[static_cast<std::size_t>(y * board.width + x)];
+      if (x + 1 < board.width)
+        spacing = std::min(spacing, cv::norm(p - corners[static_cast<std::size_t>(y * board.width + x + 1)]));
+      if (y + 1 < board.height)
+        spacing = std::min(spacing, cv::norm(p - corners[static_cast<std::size_t>((y + 1) * board.width + x)]));
+    }
+  const int half = std::clamp(static_cast<int>(spacing * 0.4), 2, 11);
+  cv::cornerSubPix(gray, corners, cv::Size(half, half), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 0.01));
   return true;
 }
@@ -168,12 +182,17 @@ RectificationCheck check_rectification(const StereoCalibration &calib,
     std::vector<cv::Point2f> rl, rr;
     cv::undistortPoints(d.left[k], rl, c.M1, c.D1, R1, P1, crit);
     cv::undistortPoints(d.right[k], rr, c.M2, c.D2, R2, P2, crit);
+    double pair_sum = 0, pair_max = 0;
     for (std::size_t j = 0; j < rl.size(); ++j) {
       const double dy = std::abs(static_cast<double>(rl[j].y) - rr[j].y);
-      sum += dy;
-      out.max_abs_dy = std::max(out.max_abs_dy, dy);
-      ++out.corners;
+      pair_sum += dy;
+      pair_max = std::max(pair_max, dy);
     }
+    sum += pair_sum;
+    out.corners += rl.size();
+    out.max_abs_dy = std::max(out.max_abs_dy, pair_max);
+    out.pair_mean_abs_dy.push_back(pair_sum / static_cast<double>(rl.size()));
+    out.pair_max_abs_dy.push_back(pair_max);
   }
   out.mean_abs_dy = sum / static_cast<double>(out.corners);
   return out;
@@ -181,6 +200,8 @@ RectificationCheck check_rectification(const StereoCalibration &calib,
 
 std::vector<std::string> read_image_list(const std::string &path)
 {
+  if (!std::ifstream(path))
+    throw std::runtime_error(path + ": image list is missing or cannot be read");
   cv::FileStorage fs;
   try {
     fs.open(path, cv::FileStorage::READ);

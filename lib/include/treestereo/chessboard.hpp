@@ -47,6 +47,8 @@ struct RectificationCheck {
   double mean_abs_dy = 0, max_abs_dy = 0; // px, over all matching corners
   std::size_t corners = 0;                // how many corner pairs were measured
   std::vector<std::size_t> used;
+  std::vector<double> pair_mean_abs_dy;   // per used pair (same order as `used`), px
+  std::vector<double> pair_max_abs_dy;
   std::vector<RejectedPair> rejected;
 };
 
