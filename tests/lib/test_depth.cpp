@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 using namespace treestereo;
@@ -300,6 +301,8 @@ TEST(DenseDepth, TexturedPlaneAtKnownDisparity)
         z.push_back(dz);
       outside_with_depth += (dz && !m);
     }
+  std::printf("[ dense plane ] true Z %.2f mm, map median %.2f mm, coverage %.1f%% of the mask\n",
+              z_true, median(z), 100.0 * double(z.size()) / in_mask);
   EXPECT_EQ(outside_with_depth, 0) << "depth only on the vegetation mask";
   EXPECT_GT(double(z.size()), 0.8 * in_mask);
   EXPECT_NEAR(median(z), z_true, 0.01 * z_true);
@@ -314,6 +317,13 @@ TEST(DenseDepth, TexturedPlaneAtKnownDisparity)
     // X from the pixel: the triangulation of the sampled pixel itself.
     EXPECT_NEAR(pt.x, (x - g.cx[LEFT]) * pt.z / g.fx, 1e-2);
   }
+
+  // The same pair as BGR frames (what a video stream carries) gives the same depth.
+  cv::Mat lc, rc;
+  cv::cvtColor(pp.left, lc, cv::COLOR_GRAY2BGR);
+  cv::cvtColor(pp.right, rc, cv::COLOR_GRAY2BGR);
+  const DenseResult rb = dense_depth(lc, rc, pp.mask, pp.box, g, p);
+  EXPECT_NEAR(rb.stats.median_mm, z_true, 0.01 * z_true);
 }
 
 TEST(DenseDepth, InconsistentInputThrows)
