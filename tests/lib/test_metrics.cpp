@@ -160,6 +160,27 @@ TEST(Metrics, SphereExtentOptionsCompared)
   }
 }
 
+// The paper's depth noise (1.36 cm sd at ~2 m) and 300 points, like a frame of SIFT matches.
+TEST(Metrics, SphereWithPaperDepthNoise)
+{
+  const StereoGeometry g = camera();
+  const Scene s = cast(g, ellipsoid({300, -200, 3000}, 1000, 1000), 40);
+  ASSERT_GT(s.points.size(), 250u);
+  cv::RNG rng(9);
+  std::vector<Point3> noisy = s.points;
+  for (Point3 &p : noisy) { // along the pixel's ray, as a disparity error moves it
+    const double k = 1.0 + rng.gaussian(13.6) / p.z;
+    p.x = float(p.x * k);
+    p.y = float(p.y * k);
+    p.z = float(p.z * k);
+  }
+  const TreeMetrics m = compute_tree_metrics(s.sil, noisy, g, MetricsParams{});
+  std::printf("[ sphere, noisy, %zu points ] width %.4f m height %.4f m\n", m.points, m.width_m,
+              m.height_m);
+  EXPECT_LT(rel(m.width_m, 2.0), 0.02);
+  EXPECT_LT(rel(m.height_m, 2.0), 0.02);
+}
+
 TEST(Metrics, EllipsoidOfRevolutionWidthExactHeightClose)
 {
   const StereoGeometry g = camera();
