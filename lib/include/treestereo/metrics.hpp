@@ -1,0 +1,119 @@
+// The tree's measurements from its left silhouette and its 3D points: the algorithm behind
+// `treemetrics`. Every field of DESIGN.md's "treemetrics measurements" table, rectified-left
+// camera frame (x right, y down, z forward), metres.
+//
+// Height and width: the silhouette gives the canopy's extent as angles (exactly: its border
+// pixels are rays tangent to the canopy); the 3D points give depths, but only of the canopy's
+// visible front. A silhouette converted at the front face reads low (DESIGN: 10-15% on a round
+// canopy), and the points' own X/Y spread reads low too (the visible limb lies in front of the
+// canopy's widest section). `MetricsParams::extent_depth` chooses how the angles become metres:
+//
+//  - kRoundCanopy (default): the canopy is taken as a solid of revolution about a vertical axis
+//    (a sphere, an ellipsoid, a cone: an orchard tree). Its nearest point is at depth
+//    Z_near = Zc - R, and the left/right silhouette edge rays are tangent to its widest
+//    horizontal section of radius R centred at (Xc, Zc). With the edge rays' angles th_l, th_r,
+//    phi = (th_l + th_r)/2 and D = (th_r - th_l)/2 (in the XZ plane):
+//        R = Z_near * sin D / (cos phi - sin D),  Zc = Z_near + R,  Xc = Zc * tan phi,
+//    exact for any such solid. The vertical centre comes the same way from the top/bottom
+//    rays (Yc = Zc * tan of their bisector) and each extent is the sum of the distances from
+//    the centre to the two tangent planes: exact for a sphere (height and width) and for the
+//    width of any solid of revolution; for the height of a tall ellipsoid seen from close by it
+//    reads a few percent low. Z_near is a low percentile of the point depths
+//    (near_percentile), which is what makes it robust and also its main error (a percentile
+//    of p% sits about R*(1 - sqrt(1 - p/100)) behind the true front).
+//  - kEdgePoints: converts the silhouette at the median depth of the points nearest the
+//    silhouette's left and right edges (per row, within edge_fraction of the row's extent).
+//  - kMidDepth: converts at median + thickness/2.
+//  - kFrontFace: converts at `distance` (the median); kept to show how low it reads.
+// The last three convert X = t*Z_ext with t = (x - cx)/fx (so bands, area and perimeter use
+// the same Z_ext). kRoundCanopy reports the equivalent Z_ext = width / (t_r - t_l).
+#pragma once
+
+#include "treestereo/types.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <cstddef>
+#include <vector>
+
+namespace treestereo {
+
+enum class ExtentDepth { kRoundCanopy, kEdgePoints, kMidDepth, kFrontFace };
+
+struct MetricsParams {
+  int n_bands = 5;               // horizontal bands, canopy top to bottom (>= 1)
+  ExtentDepth extent_depth = ExtentDepth::kRoundCanopy;
+  double near_percentile = 2.0;  // kRoundCanopy: Z_near = this percentile of the depths
+  double edge_fraction = 0.15;   // kEdgePoints: the outer part of each row's extent
+  // A band's nearest-face depth: this percentile of its points' depths (5 = robust to a
+  // stray point, still the front). Bands with fewer than min_band_points points take it from
+  // their neighbours (see Band::depth_measured).
+  double band_depth_percentile = 5.0;
+  int min_band_points = 3;
+  // Points count only where they project onto the silhouette (within one pixel): matches
+  // off the canopy (sky, ground, the next tree) do not move its figures.
+  bool points_in_mask_only = true;
+};
+
+struct Clipped {
+  bool top = false, bottom = false, left = false, right = false;
+  bool any() const { return top || bottom || left || right; }
+};
+
+// One horizontal slice of the canopy. Present = the silhouette has pixels in it.
+struct Band {
+  bool present = false;
+  double top_m = 0, bottom_m = 0;   // Y of the band's top and bottom (y down)
+  double left_m = 0, right_m = 0;   // X of the canopy's left and right edge in the band
+  double width_m = 0;               // right - left
+  // Nearest-face depth: band_depth_percentile of the band's point depths. A present band with
+  // too few points interpolates linearly between the nearest measured bands above and below
+  // (or copies the one measured neighbour side); depth_measured is then false. 0 when the band
+  // is absent or no band has points.
+  double depth_m = 0;
+  bool depth_measured = false;
+  std::size_t n_points = 0;
+};
+
+struct TreeMetrics {
+  // False when there is no canopy or no valid canopy point; every other field is then zero.
+  bool tree_present = false;
+  double distance_m = 0;          // median Z of the canopy points
+  double height_m = 0, width_m = 0; // real extents (see the top of this header)
+  Clipped clipped;                // borders the silhouette touches: extents are lower bounds
+  double thickness_m = 0;         // p95 - p05 of the points' Z
+  double area_m2 = 0, perimeter_m = 0, complexity = 0;
+  // The canopy's centre. kRoundCanopy: the model's centre (Xc, Yc, Zc), on the axis of the
+  // solid of revolution (the silhouette's area centroid is not: perspective shifts it outwards
+  // off-axis). Other modes: the silhouette's area centroid at the extent depth.
+  cv::Point3d centroid_m;
+  std::vector<Band> bands;        // n_bands, top to bottom (empty when no tree)
+  std::size_t points = 0;         // valid points on the canopy the figures rest on
+  std::size_t matches = 0;        // correspondences the points came from (points.size())
+  double extent_depth_m = 0;      // the depth the silhouette was converted at (see header)
+};
+
+// Throws std::runtime_error when the geometry is invalid, the mask's size is not the view size,
+// or the parameters are out of range.
+TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point3> &points,
+                                 const StereoGeometry &geometry, const MetricsParams &params);
+
+// Exponential smoothing across frames: out = alpha * previous + (1 - alpha) * current for the
+// continuous fields (distances, extents, area, perimeter, complexity, centroid, band values of
+// bands present in both frames); flags and counts are the current frame's. alpha = 0 is off.
+// A frame without a tree is passed on unchanged and forgets the history, so no stale value
+// ever reaches a no-tree frame or the next tree. A change in the number of bands also resets.
+class MetricsSmoother {
+public:
+  explicit MetricsSmoother(double alpha = 0.0);
+  TreeMetrics update(const TreeMetrics &current);
+  void reset() { has_state_ = false; }
+  double alpha() const { return alpha_; }
+
+private:
+  double alpha_;
+  bool has_state_ = false;
+  TreeMetrics state_;
+};
+
+} // namespace treestereo

@@ -1,0 +1,343 @@
+#include "treestereo/metrics.hpp"
+
+#include "treestereo/stats.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace treestereo {
+
+namespace {
+
+constexpr double kMmToM = 1e-3;
+
+void check_input(const Silhouette &s, const StereoGeometry &g, const MetricsParams &p)
+{
+  if (!g.valid())
+    throw std::runtime_error("tree metrics: the stereo geometry is not valid (no focal length, "
+                             "baseline or view size): rectify with a calibration first");
+  if (s.present && !s.mask.empty() && (s.mask.size() != g.view_size || s.mask.type() != CV_8UC1))
+    throw std::runtime_error("tree metrics: the silhouette mask must be CV_8U of the view size " +
+                             std::to_string(g.view_size.width) + "x" +
+                             std::to_string(g.view_size.height));
+  if (p.n_bands < 1 || p.min_band_points < 1 || !(p.near_percentile >= 0.0) ||
+      !(p.near_percentile <= 50.0) || !(p.edge_fraction > 0.0) || !(p.edge_fraction <= 0.5) ||
+      !(p.band_depth_percentile >= 0.0) || !(p.band_depth_percentile <= 100.0))
+    throw std::runtime_error("tree metrics: parameters out of range (bands >= 1, min band points "
+                             ">= 1, near percentile in [0, 50], edge fraction in (0, 0.5], band "
+                             "depth percentile in [0, 100])");
+}
+
+// A canopy point with where it falls in the left view.
+struct CanopyPoint {
+  double z_mm;
+  double u, v; // left-view pixel
+};
+
+bool in_mask_near(const cv::Mat &mask, int u, int v)
+{
+  for (int dv = -1; dv <= 1; ++dv)
+    for (int du = -1; du <= 1; ++du) {
+      const int x = u + du, y = v + dv;
+      if (x >= 0 && y >= 0 && x < mask.cols && y < mask.rows && mask.at<uchar>(y, x))
+        return true;
+    }
+  return false;
+}
+
+std::vector<CanopyPoint> canopy_points(const std::vector<Point3> &points, const cv::Mat &mask,
+                                       const StereoGeometry &g, bool in_mask_only)
+{
+  const double fy = g.fy > 0 ? g.fy : g.fx;
+  std::vector<CanopyPoint> out;
+  out.reserve(points.size());
+  for (const Point3 &p : points) {
+    if (!p.valid || !(p.z > 0.0f) || !std::isfinite(p.x) || !std::isfinite(p.y))
+      continue;
+    const double u = g.fx * p.x / p.z + g.cx[LEFT], v = fy * p.y / p.z + g.cy;
+    if (in_mask_only && !in_mask_near(mask, int(std::lround(u)), int(std::lround(v))))
+      continue;
+    out.push_back({double(p.z), u, v});
+  }
+  return out;
+}
+
+std::vector<double> depths_of(const std::vector<CanopyPoint> &pts)
+{
+  std::vector<double> z(pts.size());
+  std::transform(pts.begin(), pts.end(), z.begin(), [](const CanopyPoint &p) { return p.z_mm; });
+  return z;
+}
+
+// The silhouette's leftmost and rightmost pixel per row (-1 where the row is empty).
+struct RowExtents {
+  cv::Rect bbox;
+  std::vector<int> left, right; // indexed by row - bbox.y
+  int xl(int row) const { return left[std::size_t(row - bbox.y)]; }
+  int xr(int row) const { return right[std::size_t(row - bbox.y)]; }
+};
+
+RowExtents row_extents(const cv::Mat &mask)
+{
+  RowExtents e;
+  e.bbox = cv::boundingRect(mask);
+  e.left.assign(std::size_t(e.bbox.height), -1);
+  e.right.assign(std::size_t(e.bbox.height), -1);
+  for (int r = 0; r < e.bbox.height; ++r) {
+    const uchar *row = mask.ptr<uchar>(e.bbox.y + r);
+    for (int x = e.bbox.x; x < e.bbox.x + e.bbox.width; ++x)
+      if (row[x]) {
+        if (e.left[std::size_t(r)] < 0)
+          e.left[std::size_t(r)] = x;
+        e.right[std::size_t(r)] = x;
+      }
+  }
+  return e;
+}
+
+// Turns image-plane slopes t = (x - cx)/fx (or (y - cy)/fy) into metres, by one of the
+// header's models. `round`: signed distance of the plane X = t Z (Y = t Z) from the canopy's
+// centre added to the centre; otherwise t * z_ext.
+struct Converter {
+  bool round = false;
+  double z_ext = 0;           // mm: the equivalent conversion depth
+  double xc = 0, yc = 0, zc = 0; // mm: the canopy's centre (round) / axis depth
+  double x(double t) const { return round ? xc + (t * zc - xc) / std::hypot(1.0, t) : t * z_ext; }
+  double y(double t) const { return round ? yc + (t * zc - yc) / std::hypot(1.0, t) : t * z_ext; }
+};
+
+struct Slopes {
+  double left, right, top, bottom; // of the silhouette's outer pixel edges
+};
+
+Converter round_canopy(const Slopes &s, double z_near)
+{
+  const double th_l = std::atan(s.left), th_r = std::atan(s.right);
+  const double phi = 0.5 * (th_l + th_r), half = 0.5 * (th_r - th_l);
+  const double denom = std::cos(phi) - std::sin(half);
+  Converter c;
+  c.round = true;
+  // denom <= 0 would mean the camera is inside the canopy's tangent cone: no finite solution.
+  const double r = denom > 1e-9 ? z_near * std::sin(half) / denom : 0.0;
+  c.zc = z_near + r;
+  c.xc = c.zc * std::tan(phi);
+  c.yc = c.zc * std::tan(0.5 * (std::atan(s.top) + std::atan(s.bottom)));
+  const double dt = s.right - s.left;
+  c.z_ext = dt > 0 ? (c.x(s.right) - c.x(s.left)) / dt : c.zc;
+  return c;
+}
+
+// Median depth of the points in the outer edge_fraction of their row's extent.
+double edge_depth(const std::vector<CanopyPoint> &pts, const RowExtents &e, double fraction,
+                  double fallback)
+{
+  std::vector<double> z;
+  for (const CanopyPoint &p : pts) {
+    const int row = std::clamp(int(std::lround(p.v)), e.bbox.y, e.bbox.y + e.bbox.height - 1);
+    if (e.xl(row) < 0)
+      continue;
+    const double w = e.xr(row) - e.xl(row) + 1;
+    if (p.u <= e.xl(row) - 0.5 + fraction * w || p.u >= e.xr(row) + 0.5 - fraction * w)
+      z.push_back(p.z_mm);
+  }
+  return z.empty() ? fallback : median(z);
+}
+
+Converter choose_converter(const MetricsParams &p, const Slopes &s, const Summary &depth,
+                           std::vector<double> z, const std::vector<CanopyPoint> &pts,
+                           const RowExtents &e)
+{
+  Converter c;
+  const double mid = depth.median + 0.5 * (depth.p95 - depth.p05);
+  switch (p.extent_depth) {
+  case ExtentDepth::kRoundCanopy: return round_canopy(s, percentile(z, p.near_percentile));
+  case ExtentDepth::kEdgePoints: c.z_ext = edge_depth(pts, e, p.edge_fraction, mid); break;
+  case ExtentDepth::kMidDepth: c.z_ext = mid; break;
+  case ExtentDepth::kFrontFace: c.z_ext = depth.median; break;
+  }
+  c.zc = c.z_ext;
+  return c;
+}
+
+void fill_missing_band_depths(std::vector<Band> &bands, double canopy_near_m)
+{
+  const int n = int(bands.size());
+  bool any = false;
+  for (const Band &b : bands)
+    any = any || b.depth_measured;
+  for (int i = 0; i < n; ++i) {
+    Band &b = bands[std::size_t(i)];
+    if (!b.present || b.depth_measured)
+      continue;
+    if (!any) {
+      b.depth_m = canopy_near_m;
+      continue;
+    }
+    int above = i - 1, below = i + 1;
+    while (above >= 0 && !bands[std::size_t(above)].depth_measured)
+      --above;
+    while (below < n && !bands[std::size_t(below)].depth_measured)
+      ++below;
+    if (above >= 0 && below < n) {
+      const double w = double(i - above) / double(below - above);
+      b.depth_m = (1 - w) * bands[std::size_t(above)].depth_m + w * bands[std::size_t(below)].depth_m;
+    } else {
+      b.depth_m = bands[std::size_t(above >= 0 ? above : below)].depth_m;
+    }
+  }
+}
+
+std::vector<Band> compute_bands(const MetricsParams &p, const RowExtents &e,
+                                const std::vector<CanopyPoint> &pts, const Converter &c,
+                                const StereoGeometry &g, double canopy_near_m)
+{
+  const double fy = g.fy > 0 ? g.fy : g.fx;
+  const int n = p.n_bands;
+  const double top = e.bbox.y - 0.5, step = double(e.bbox.height) / n;
+  std::vector<Band> bands(static_cast<std::size_t>(n));
+  std::vector<std::vector<double>> band_z(static_cast<std::size_t>(n));
+  for (const CanopyPoint &pt : pts) {
+    const int i = std::clamp(int(std::floor((pt.v - top) / step)), 0, n - 1);
+    band_z[std::size_t(i)].push_back(pt.z_mm);
+  }
+  for (int i = 0; i < n; ++i) {
+    Band &b = bands[std::size_t(i)];
+    const double y0 = top + i * step, y1 = top + (i + 1) * step;
+    int xl = -1, xr = -1;
+    for (int row = std::max(e.bbox.y, int(std::ceil(y0))); row < y1 && row < e.bbox.br().y; ++row) {
+      if (e.xl(row) < 0)
+        continue;
+      xl = xl < 0 ? e.xl(row) : std::min(xl, e.xl(row));
+      xr = std::max(xr, e.xr(row));
+    }
+    b.n_points = band_z[std::size_t(i)].size();
+    if (xl < 0)
+      continue; // a gap in the canopy: not present, all zero
+    b.present = true;
+    b.top_m = c.y((y0 - g.cy) / fy) * kMmToM;
+    b.bottom_m = c.y((y1 - g.cy) / fy) * kMmToM;
+    b.left_m = c.x((xl - 0.5 - g.cx[LEFT]) / g.fx) * kMmToM;
+    b.right_m = c.x((xr + 0.5 - g.cx[LEFT]) / g.fx) * kMmToM;
+    b.width_m = b.right_m - b.left_m;
+    if (int(b.n_points) >= p.min_band_points) {
+      b.depth_m = percentile(band_z[std::size_t(i)], p.band_depth_percentile) * kMmToM;
+      b.depth_measured = true;
+    }
+  }
+  fill_missing_band_depths(bands, canopy_near_m);
+  return bands;
+}
+
+} // namespace
+
+TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point3> &points,
+                                 const StereoGeometry &g, const MetricsParams &p)
+{
+  check_input(left, g, p);
+  TreeMetrics m;
+  if (!left.present || left.mask.empty() || cv::countNonZero(left.mask) == 0)
+    return m;
+  const std::vector<CanopyPoint> pts = canopy_points(points, left.mask, g, p.points_in_mask_only);
+  if (pts.empty())
+    return m;
+
+  const double fy = g.fy > 0 ? g.fy : g.fx;
+  const RowExtents e = row_extents(left.mask);
+  const Slopes s{(e.bbox.x - 0.5 - g.cx[LEFT]) / g.fx, (e.bbox.br().x - 0.5 - g.cx[LEFT]) / g.fx,
+                 (e.bbox.y - 0.5 - g.cy) / fy, (e.bbox.br().y - 0.5 - g.cy) / fy};
+  std::vector<double> z = depths_of(pts);
+  const Summary depth = summarize(z);
+  const Converter c = choose_converter(p, s, depth, z, pts, e);
+
+  m.tree_present = true;
+  m.points = pts.size();
+  m.matches = points.size();
+  m.distance_m = depth.median * kMmToM;
+  m.thickness_m = (depth.p95 - depth.p05) * kMmToM;
+  m.extent_depth_m = c.z_ext * kMmToM;
+  m.width_m = (c.x(s.right) - c.x(s.left)) * kMmToM;
+  m.height_m = (c.y(s.bottom) - c.y(s.top)) * kMmToM;
+  const cv::Size vs = g.view_size;
+  m.clipped.top = e.bbox.y == 0;
+  m.clipped.left = e.bbox.x == 0;
+  m.clipped.bottom = e.bbox.br().y == vs.height;
+  m.clipped.right = e.bbox.br().x == vs.width;
+
+  // Area and perimeter at the equivalent depth, so that area ~ width * height for a box.
+  const double area_px = left.area_px > 0 ? left.area_px : double(cv::countNonZero(left.mask));
+  double perim_px = left.perimeter_px;
+  if (!(perim_px > 0)) {
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(left.mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    for (const auto &ct : contours)
+      perim_px += cv::arcLength(ct, true);
+  }
+  const double mpp_x = c.z_ext / g.fx * kMmToM, mpp_y = c.z_ext / fy * kMmToM;
+  m.area_m2 = area_px * mpp_x * mpp_y;
+  m.perimeter_m = perim_px * std::sqrt(mpp_x * mpp_y);
+  m.complexity = m.area_m2 > 0 ? m.perimeter_m * m.perimeter_m / (4.0 * CV_PI * m.area_m2) : 0.0;
+
+  if (c.round) {
+    m.centroid_m = cv::Point3d(c.xc, c.yc, c.zc) * kMmToM;
+  } else {
+    const cv::Moments mo = cv::moments(left.mask, true);
+    const double tcx = (mo.m10 / mo.m00 - g.cx[LEFT]) / g.fx, tcy = (mo.m01 / mo.m00 - g.cy) / fy;
+    m.centroid_m = cv::Point3d(tcx * c.z_ext, tcy * c.z_ext, c.z_ext) * kMmToM;
+  }
+
+  std::vector<double> zb = z;
+  const double near_m = percentile(zb, p.band_depth_percentile) * kMmToM;
+  m.bands = compute_bands(p, e, pts, c, g, near_m);
+  return m;
+}
+
+// ---- MetricsSmoother ----
+
+MetricsSmoother::MetricsSmoother(double alpha) : alpha_(alpha)
+{
+  if (!(alpha >= 0.0) || !(alpha < 1.0))
+    throw std::runtime_error("metrics smoothing alpha must be in [0, 1), got " +
+                             std::to_string(alpha));
+}
+
+TreeMetrics MetricsSmoother::update(const TreeMetrics &cur)
+{
+  if (!cur.tree_present || alpha_ == 0.0 || !has_state_ ||
+      state_.bands.size() != cur.bands.size()) {
+    has_state_ = cur.tree_present && alpha_ > 0.0;
+    state_ = cur;
+    return cur;
+  }
+  const double a = alpha_;
+  auto mix = [a](double prev, double now) { return a * prev + (1.0 - a) * now; };
+  TreeMetrics out = cur;
+  out.distance_m = mix(state_.distance_m, cur.distance_m);
+  out.height_m = mix(state_.height_m, cur.height_m);
+  out.width_m = mix(state_.width_m, cur.width_m);
+  out.thickness_m = mix(state_.thickness_m, cur.thickness_m);
+  out.area_m2 = mix(state_.area_m2, cur.area_m2);
+  out.perimeter_m = mix(state_.perimeter_m, cur.perimeter_m);
+  out.complexity = mix(state_.complexity, cur.complexity);
+  out.extent_depth_m = mix(state_.extent_depth_m, cur.extent_depth_m);
+  out.centroid_m = a * state_.centroid_m + (1.0 - a) * cur.centroid_m;
+  for (std::size_t i = 0; i < out.bands.size(); ++i) {
+    const Band &prev = state_.bands[i];
+    Band &b = out.bands[i];
+    if (!prev.present || !b.present)
+      continue; // a band that appears or vanishes takes the current frame's values
+    b.top_m = mix(prev.top_m, b.top_m);
+    b.bottom_m = mix(prev.bottom_m, b.bottom_m);
+    b.left_m = mix(prev.left_m, b.left_m);
+    b.right_m = mix(prev.right_m, b.right_m);
+    b.width_m = b.right_m - b.left_m;
+    b.depth_m = mix(prev.depth_m, b.depth_m);
+  }
+  state_ = out;
+  return out;
+}
+
+} // namespace treestereo

@@ -1,0 +1,393 @@
+// Tree metrics against canopies built analytically: a sphere, an ellipsoid of revolution and a
+// stepped flat canopy, silhouettes by ray casting through the rectified left camera.
+#include "treestereo/metrics.hpp"
+#include "treestereo/stats.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <optional>
+
+using namespace treestereo;
+
+namespace {
+
+StereoGeometry camera()
+{
+  StereoGeometry g;
+  g.view_size = cv::Size(1296, 972);
+  g.fx = g.fy = 1100;
+  g.cx[LEFT] = g.cx[RIGHT] = 648;
+  g.cy = 486;
+  g.baseline_mm = 50;
+  return g;
+}
+
+cv::Vec3d ray(const StereoGeometry &g, double u, double v)
+{
+  return {(u - g.cx[LEFT]) / g.fx, (v - g.cy) / g.fy, 1.0};
+}
+
+// First hit (depth Z along the ray with z = 1) of a ray with an object, if any.
+using Caster = std::function<std::optional<double>(const cv::Vec3d &)>;
+
+// Ellipsoid of revolution about the vertical: semi-axes a (x, z) and c (y), centre C (mm).
+Caster ellipsoid(cv::Vec3d C, double a, double c)
+{
+  return [=](const cv::Vec3d &r) -> std::optional<double> {
+    // Scale y so the ellipsoid becomes a sphere of radius a; then solve |t r' - C'| = a.
+    const double k = a / c;
+    const cv::Vec3d rs(r[0], r[1] * k, r[2]), cs(C[0], C[1] * k, C[2]);
+    const double A = rs.dot(rs), B = rs.dot(cs), D = B * B - A * (cs.dot(cs) - a * a);
+    if (D < 0)
+      return std::nullopt;
+    return (B - std::sqrt(D)) / A; // z of the nearest hit (r has z = 1)
+  };
+}
+
+struct Scene {
+  Silhouette sil;
+  std::vector<Point3> points;
+  std::vector<double> z; // true depths of the points
+};
+
+// Silhouette of every pixel whose centre ray hits; visible-surface points every `step` px.
+Scene cast(const StereoGeometry &g, const Caster &hit, int step)
+{
+  Scene s;
+  s.sil.mask = cv::Mat::zeros(g.view_size, CV_8U);
+  for (int v = 0; v < g.view_size.height; ++v)
+    for (int u = 0; u < g.view_size.width; ++u) {
+      const cv::Vec3d r = ray(g, u, v);
+      const std::optional<double> t = hit(r);
+      if (!t)
+        continue;
+      s.sil.mask.at<uchar>(v, u) = 255;
+      if (u % step == 0 && v % step == 0) {
+        Point3 p;
+        p.x = float(r[0] * *t);
+        p.y = float(r[1] * *t);
+        p.z = float(*t);
+        p.match_index = std::uint32_t(s.points.size());
+        s.points.push_back(p);
+        s.z.push_back(*t);
+      }
+    }
+  s.sil.present = cv::countNonZero(s.sil.mask) > 0;
+  s.sil.area_px = cv::countNonZero(s.sil.mask);
+  s.sil.bbox = cv::boundingRect(s.sil.mask);
+  return s;
+}
+
+void expect_finite(const TreeMetrics &m)
+{
+  for (double v : {m.distance_m, m.height_m, m.width_m, m.thickness_m, m.area_m2, m.perimeter_m,
+                   m.complexity, m.centroid_m.x, m.centroid_m.y, m.centroid_m.z,
+                   m.extent_depth_m})
+    EXPECT_TRUE(std::isfinite(v));
+  for (const Band &b : m.bands)
+    for (double v : {b.top_m, b.bottom_m, b.left_m, b.right_m, b.width_m, b.depth_m})
+      EXPECT_TRUE(std::isfinite(v));
+}
+
+void expect_no_tree(const TreeMetrics &m)
+{
+  EXPECT_FALSE(m.tree_present);
+  expect_finite(m);
+  for (double v : {m.distance_m, m.height_m, m.width_m, m.thickness_m, m.area_m2, m.perimeter_m,
+                   m.complexity, m.centroid_m.x, m.centroid_m.y, m.centroid_m.z,
+                   m.extent_depth_m})
+    EXPECT_EQ(v, 0.0);
+  EXPECT_TRUE(m.bands.empty());
+  EXPECT_FALSE(m.clipped.any());
+  EXPECT_EQ(m.points, 0u);
+}
+
+double rel(double got, double want) { return std::abs(got - want) / want; }
+
+} // namespace
+
+// R = 1 m at 3 m, off the optical axis: the test of the extent model.
+TEST(Metrics, SphereHeightAndWidthWithinOnePointFivePercent)
+{
+  const StereoGeometry g = camera();
+  const double R = 1000;
+  const Scene s = cast(g, ellipsoid({300, -200, 3000}, R, R), 4);
+  ASSERT_TRUE(s.sil.present);
+  const TreeMetrics m = compute_tree_metrics(s.sil, s.points, g, MetricsParams{});
+  ASSERT_TRUE(m.tree_present);
+  expect_finite(m);
+  EXPECT_FALSE(m.clipped.any());
+  EXPECT_LT(rel(m.width_m, 2.0), 0.015) << "width " << m.width_m;
+  EXPECT_LT(rel(m.height_m, 2.0), 0.015) << "height " << m.height_m;
+  std::vector<double> z = s.z;
+  EXPECT_NEAR(m.distance_m, median(z) * 1e-3, 1e-6);
+  const Summary zs = summarize(s.z);
+  EXPECT_NEAR(m.thickness_m, (zs.p95 - zs.p05) * 1e-3, 1e-6);
+  EXPECT_EQ(m.points, s.points.size());
+  EXPECT_EQ(m.matches, s.points.size());
+  // Centre of the sphere: the model's centre is off by the near-percentile's lag only.
+  EXPECT_NEAR(m.centroid_m.z, 3.0, 0.03);
+  EXPECT_NEAR(m.centroid_m.x, 0.3, 0.005);
+  EXPECT_NEAR(m.centroid_m.y, -0.2, 0.005);
+  // A disc of radius R: area pi R^2, perimeter 2 pi R, complexity ~1.
+  EXPECT_LT(rel(m.area_m2, CV_PI), 0.03);
+  EXPECT_LT(rel(m.perimeter_m, 2 * CV_PI), 0.06); // pixel contours run a little long
+  // ~1 for a disc; the 8-connected pixel contour's length adds its ~5% twice.
+  EXPECT_GE(m.complexity, 1.0);
+  EXPECT_LT(m.complexity, 1.15);
+}
+
+// DESIGN.md: the front face (median Z) reads clearly low; the other options are reported.
+TEST(Metrics, SphereExtentOptionsCompared)
+{
+  const StereoGeometry g = camera();
+  const Scene s = cast(g, ellipsoid({300, -200, 3000}, 1000, 1000), 4);
+  MetricsParams p;
+  for (ExtentDepth mode : {ExtentDepth::kRoundCanopy, ExtentDepth::kEdgePoints,
+                           ExtentDepth::kMidDepth, ExtentDepth::kFrontFace}) {
+    p.extent_depth = mode;
+    const TreeMetrics m = compute_tree_metrics(s.sil, s.points, g, p);
+    std::printf("[ extent mode %d ] width %.4f m (%+.2f%%) height %.4f m (%+.2f%%) at %.3f m\n",
+                int(mode), m.width_m, 100 * (m.width_m / 2 - 1), m.height_m,
+                100 * (m.height_m / 2 - 1), m.extent_depth_m);
+    if (mode == ExtentDepth::kFrontFace) {
+      EXPECT_LT(m.width_m, 0.95 * 2.0);
+    }
+  }
+}
+
+// The paper's depth noise (1.36 cm sd at ~2 m) and 300 points, like a frame of SIFT matches.
+TEST(Metrics, SphereWithPaperDepthNoise)
+{
+  const StereoGeometry g = camera();
+  const Scene s = cast(g, ellipsoid({300, -200, 3000}, 1000, 1000), 40);
+  ASSERT_GT(s.points.size(), 250u);
+  cv::RNG rng(9);
+  std::vector<Point3> noisy = s.points;
+  for (Point3 &p : noisy) { // along the pixel's ray, as a disparity error moves it
+    const double k = 1.0 + rng.gaussian(13.6) / p.z;
+    p.x = float(p.x * k);
+    p.y = float(p.y * k);
+    p.z = float(p.z * k);
+  }
+  const TreeMetrics m = compute_tree_metrics(s.sil, noisy, g, MetricsParams{});
+  std::printf("[ sphere, noisy, %zu points ] width %.4f m height %.4f m\n", m.points, m.width_m,
+              m.height_m);
+  EXPECT_LT(rel(m.width_m, 2.0), 0.02);
+  EXPECT_LT(rel(m.height_m, 2.0), 0.02);
+}
+
+TEST(Metrics, EllipsoidOfRevolutionWidthExactHeightClose)
+{
+  const StereoGeometry g = camera();
+  const Scene s = cast(g, ellipsoid({-150, 100, 3200}, 800, 1200), 4);
+  const TreeMetrics m = compute_tree_metrics(s.sil, s.points, g, MetricsParams{});
+  ASSERT_TRUE(m.tree_present);
+  std::printf("[ ellipsoid a=0.8 c=1.2 ] width %.4f m height %.4f m\n", m.width_m, m.height_m);
+  EXPECT_LT(rel(m.width_m, 1.6), 0.015);
+  EXPECT_LT(rel(m.height_m, 2.4), 0.05);
+}
+
+TEST(Metrics, ClippedFlagsFollowTheBorders)
+{
+  const StereoGeometry g = camera();
+  // Centre up and left of the view: the canopy runs off the top and left borders.
+  const Scene s = cast(g, ellipsoid({-2200, -1300, 3000}, 1000, 1000), 6);
+  const TreeMetrics m = compute_tree_metrics(s.sil, s.points, g, MetricsParams{});
+  ASSERT_TRUE(m.tree_present);
+  EXPECT_TRUE(m.clipped.top);
+  EXPECT_TRUE(m.clipped.left);
+  EXPECT_FALSE(m.clipped.bottom);
+  EXPECT_FALSE(m.clipped.right);
+  const Scene c = cast(g, ellipsoid({0, 0, 3000}, 1000, 1000), 6);
+  const TreeMetrics mc = compute_tree_metrics(c.sil, c.points, g, MetricsParams{});
+  EXPECT_FALSE(mc.clipped.any());
+}
+
+TEST(Metrics, NoCanopyOrNoPointsMeansNoTreeAndZeros)
+{
+  const StereoGeometry g = camera();
+  Silhouette none; // not present
+  expect_no_tree(compute_tree_metrics(none, {}, g, MetricsParams{}));
+
+  const Scene s = cast(g, ellipsoid({0, 0, 3000}, 1000, 1000), 8);
+  expect_no_tree(compute_tree_metrics(s.sil, {}, g, MetricsParams{}));
+
+  std::vector<Point3> invalid = s.points;
+  for (Point3 &p : invalid)
+    p.valid = false;
+  expect_no_tree(compute_tree_metrics(s.sil, invalid, g, MetricsParams{}));
+
+  // Points that all fall off the silhouette (the view's corner) are not the canopy's.
+  Point3 off;
+  off.x = -1800;
+  off.y = -1300;
+  off.z = 3000;
+  expect_no_tree(compute_tree_metrics(s.sil, {off}, g, MetricsParams{}));
+
+  Silhouette empty_mask;
+  empty_mask.present = true;
+  empty_mask.mask = cv::Mat::zeros(g.view_size, CV_8U);
+  expect_no_tree(compute_tree_metrics(empty_mask, s.points, g, MetricsParams{}));
+}
+
+TEST(Metrics, PointsOffTheSilhouetteDoNotMoveTheFigures)
+{
+  const StereoGeometry g = camera();
+  const Scene s = cast(g, ellipsoid({0, 0, 3000}, 1000, 1000), 6);
+  std::vector<Point3> with_bg = s.points;
+  for (int i = 0; i < 200; ++i) { // a background wall at 9 m in the view's lower-left corner
+    Point3 p;
+    p.z = 9000;
+    p.x = float((20 + i - g.cx[LEFT]) * p.z / g.fx);
+    p.y = float((900 - g.cy) * p.z / g.fy);
+    with_bg.push_back(p);
+  }
+  const TreeMetrics a = compute_tree_metrics(s.sil, s.points, g, MetricsParams{});
+  const TreeMetrics b = compute_tree_metrics(s.sil, with_bg, g, MetricsParams{});
+  EXPECT_DOUBLE_EQ(a.distance_m, b.distance_m);
+  EXPECT_DOUBLE_EQ(a.width_m, b.width_m);
+  EXPECT_EQ(b.points, s.points.size());
+  EXPECT_EQ(b.matches, with_bg.size());
+}
+
+namespace {
+
+// A flat canopy facing the camera at z0 = 2750 mm: four 400 mm steps, widths 0.6/1.0/1.4/1.8 m
+// top to bottom, centred at x = 1.25 mm. At fx = 1100 px that is 0.4 px/mm, and every step
+// edge falls on a pixel boundary, so the band profile is exact.
+const double kZ0 = 2750, kXc = 1.25, kY0 = -798.75, kStep = 400;
+const double kWidths[4] = {600, 1000, 1400, 1800};
+
+Scene stepped(const StereoGeometry &g, std::function<double(int band)> depth_of_band)
+{
+  Scene s = cast(
+      g,
+      [](const cv::Vec3d &r) -> std::optional<double> {
+        const double X = r[0] * kZ0, Y = r[1] * kZ0;
+        const int band = int(std::floor((Y - kY0) / kStep));
+        if (band < 0 || band > 3 || std::abs(X - kXc) > kWidths[band] / 2)
+          return std::nullopt;
+        return kZ0;
+      },
+      5);
+  for (Point3 &p : s.points) {
+    const int band = int(std::floor((p.y - kY0) / kStep));
+    const double z = depth_of_band(band);
+    p.x = float(p.x / kZ0 * z); // same pixel, another depth
+    p.y = float(p.y / kZ0 * z);
+    p.z = float(z);
+  }
+  return s;
+}
+
+} // namespace
+
+TEST(Metrics, BandProfileOfASteppedCanopy)
+{
+  const StereoGeometry g = camera();
+  const Scene s = stepped(g, [](int) { return kZ0; });
+  MetricsParams p;
+  p.n_bands = 4;
+  p.extent_depth = ExtentDepth::kMidDepth; // flat: thickness 0, converts at z0 exactly
+  const TreeMetrics m = compute_tree_metrics(s.sil, s.points, g, p);
+  ASSERT_TRUE(m.tree_present);
+  ASSERT_EQ(m.bands.size(), 4u);
+  EXPECT_NEAR(m.height_m, 1.6, 1e-6);
+  EXPECT_NEAR(m.width_m, 1.8, 1e-6);
+  EXPECT_NEAR(m.thickness_m, 0.0, 1e-9);
+  for (int i = 0; i < 4; ++i) {
+    const Band &b = m.bands[std::size_t(i)];
+    SCOPED_TRACE("band " + std::to_string(i));
+    EXPECT_TRUE(b.present);
+    EXPECT_TRUE(b.depth_measured);
+    EXPECT_NEAR(b.top_m, (kY0 + i * kStep) * 1e-3, 1e-6);
+    EXPECT_NEAR(b.bottom_m, (kY0 + (i + 1) * kStep) * 1e-3, 1e-6);
+    EXPECT_NEAR(b.width_m, kWidths[i] * 1e-3, 1e-6);
+    EXPECT_NEAR(b.left_m, (kXc - kWidths[i] / 2) * 1e-3, 1e-6);
+    EXPECT_NEAR(b.right_m, (kXc + kWidths[i] / 2) * 1e-3, 1e-6);
+    EXPECT_NEAR(b.depth_m, kZ0 * 1e-3, 1e-6);
+  }
+  // Area of the steps: 0.4 * (0.6 + 1.0 + 1.4 + 1.8) m^2.
+  EXPECT_NEAR(m.area_m2, 0.4 * 4.8, 1e-6);
+}
+
+TEST(Metrics, BandDepthIsTheNearFaceAndGapsInterpolate)
+{
+  const StereoGeometry g = camera();
+  // Each band's points spread over 200 mm behind its own front: 2.5, 2.6, 2.7, 2.8 m.
+  int counter = 0;
+  auto depth = [&counter](int band) { return 2500.0 + 100.0 * band + double(counter++ % 201); };
+  Scene s = stepped(g, depth);
+  MetricsParams p;
+  p.n_bands = 4;
+  p.band_depth_percentile = 5;
+  const TreeMetrics m = compute_tree_metrics(s.sil, s.points, g, p);
+  ASSERT_EQ(m.bands.size(), 4u);
+  for (int i = 0; i < 4; ++i) // p05 of ~uniform [f, f + 200]: f + 10 (mm), give or take 2
+    EXPECT_NEAR(m.bands[std::size_t(i)].depth_m, (2510.0 + 100.0 * i) * 1e-3, 0.002) << i;
+
+  // Remove the points of bands 1 and 2: their depths interpolate between bands 0 and 3.
+  std::vector<Point3> kept;
+  for (const Point3 &pt : s.points) {
+    const int band = int(std::floor((pt.y / pt.z * kZ0 - kY0) / kStep));
+    if (band == 0 || band == 3)
+      kept.push_back(pt);
+  }
+  const TreeMetrics h = compute_tree_metrics(s.sil, kept, g, p);
+  const double d0 = h.bands[0].depth_m, d3 = h.bands[3].depth_m;
+  EXPECT_TRUE(h.bands[0].depth_measured && h.bands[3].depth_measured);
+  EXPECT_FALSE(h.bands[1].depth_measured || h.bands[2].depth_measured);
+  EXPECT_TRUE(h.bands[1].present && h.bands[2].present);
+  EXPECT_NEAR(h.bands[1].depth_m, d0 + (d3 - d0) / 3, 1e-9);
+  EXPECT_NEAR(h.bands[2].depth_m, d0 + 2 * (d3 - d0) / 3, 1e-9);
+}
+
+TEST(Metrics, BadInputThrows)
+{
+  const StereoGeometry g = camera();
+  Silhouette s;
+  s.present = true;
+  s.mask = cv::Mat::zeros(cv::Size(10, 10), CV_8U);
+  EXPECT_THROW(compute_tree_metrics(s, {}, g, MetricsParams{}), std::runtime_error);
+  MetricsParams p;
+  p.n_bands = 0;
+  EXPECT_THROW(compute_tree_metrics(Silhouette{}, {}, g, p), std::runtime_error);
+  EXPECT_THROW(compute_tree_metrics(Silhouette{}, {}, StereoGeometry{}, MetricsParams{}),
+               std::runtime_error);
+  EXPECT_THROW(MetricsSmoother(1.0), std::runtime_error);
+}
+
+TEST(MetricsSmoother, ExponentialAndResetOnNoTree)
+{
+  TreeMetrics a;
+  a.tree_present = true;
+  a.width_m = 1.0;
+  a.distance_m = 2.0;
+  a.bands.resize(2);
+  a.bands[0].present = true;
+  a.bands[0].width_m = a.bands[0].right_m = 1.0;
+  TreeMetrics b = a;
+  b.width_m = 2.0;
+  b.distance_m = 3.0;
+  b.bands[0].width_m = b.bands[0].right_m = 3.0;
+
+  MetricsSmoother off(0.0);
+  EXPECT_EQ(off.update(a).width_m, 1.0);
+  EXPECT_EQ(off.update(b).width_m, 2.0);
+
+  MetricsSmoother sm(0.5);
+  EXPECT_DOUBLE_EQ(sm.update(a).width_m, 1.0);
+  const TreeMetrics s2 = sm.update(b);
+  EXPECT_DOUBLE_EQ(s2.width_m, 1.5);
+  EXPECT_DOUBLE_EQ(s2.distance_m, 2.5);
+  EXPECT_DOUBLE_EQ(s2.bands[0].width_m, 2.0);
+  const TreeMetrics none = sm.update(TreeMetrics{});
+  EXPECT_FALSE(none.tree_present);
+  EXPECT_EQ(none.width_m, 0.0);
+  EXPECT_DOUBLE_EQ(sm.update(b).width_m, 2.0) << "no stale value after a no-tree frame";
+}
