@@ -91,11 +91,15 @@ Features FeatureDetector::detect(const cv::Mat &view, const cv::Mat &mask) const
     }
     // An empty Mat is OpenCV's "no mask".
     sift_->detectAndCompute(img, m, f.keypoints, f.descriptors);
-    // Pixel centres: resized pixel i covers [i/s, (i+1)/s) of the crop.
+    // SIFT upsamples with cv::resize (pixel-centre aligned: U(i) = I(i/2 - 0.25)) but maps back
+    // by halving the coordinate, so every octave reports positions +0.25 px off (what OpenCV
+    // >= 4.8's enable_precise_upscale fixes). Then pixel centres: resized pixel i covers
+    // [i/s, (i+1)/s) of the crop.
+    constexpr float kSiftBias = 0.25f;
     const float inv = float(1.0 / params_.scale);
     for (cv::KeyPoint &kp : f.keypoints) {
-      kp.pt.x = (kp.pt.x + 0.5f) * inv - 0.5f + float(f.region.x);
-      kp.pt.y = (kp.pt.y + 0.5f) * inv - 0.5f + float(f.region.y);
+      kp.pt.x = (kp.pt.x - kSiftBias + 0.5f) * inv - 0.5f + float(f.region.x);
+      kp.pt.y = (kp.pt.y - kSiftBias + 0.5f) * inv - 0.5f + float(f.region.y);
       kp.size *= inv;
     }
   }

@@ -258,8 +258,14 @@ std::vector<StereoMatch> match_with(const Features &left, const Features &right,
     matches.push_back(StereoMatch{pl.x, pl.y, pr.x, pr.y, ch.score});
   }
   std::sort(matches.begin(), matches.end(), [](const StereoMatch &a, const StereoMatch &b) {
-    return a.yl != b.yl ? a.yl < b.yl : a.xl < b.xl;
+    return a.yl != b.yl ? a.yl < b.yl : a.xl != b.xl ? a.xl < b.xl : a.xr < b.xr;
   });
+  // SIFT gives one keypoint per dominant orientation at the same place: report the pair once.
+  matches.erase(std::unique(matches.begin(), matches.end(),
+                            [](const StereoMatch &a, const StereoMatch &b) {
+                              return a.xl == b.xl && a.yl == b.yl && a.xr == b.xr && a.yr == b.yr;
+                            }),
+                matches.end());
   return matches;
 }
 

@@ -74,7 +74,8 @@ class Matcher {
 public:
   virtual ~Matcher() = default;
   virtual const char *name() const = 0;
-  // Matches in left/right view coordinates, sorted by left keypoint. Adds to `stats`
+  // Matches in left/right view coordinates, sorted by left keypoint (row, then column), each
+  // pair once (SIFT repeats a keypoint per dominant orientation). Adds to `stats`
   // (candidates_tested, rejected_*; not keypoints/matches/times).
   virtual std::vector<StereoMatch> match(const Features &left, const Features &right,
                                          MatchStats &stats) const = 0;
@@ -119,7 +120,7 @@ std::unique_ptr<Matcher> make_matcher(const MatcherParams &params);
 // leaves the image or has no texture. After refinement yr := yl: on a rectified pair the rows
 // agree, and the vertical offset of the detection carries no depth.
 struct RefineParams {
-  int half_window = 5;   // 11x11 patches
+  int half_window = 3;   // 7x7 patches: fewer straddle a depth edge than 11x11
   int search = 2;        // px around the estimate
   double min_zncc = 0.8; // the correlation peak must be at least this
 };
