@@ -1,0 +1,67 @@
+// SIFT keypoints and descriptors of one rectified view, detected fast: only inside the
+// vegetation's bounding box and optionally on a downscaled copy, reported at full resolution.
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+
+#include <vector>
+
+namespace treestereo {
+
+struct DetectParams {
+  int nfeatures = 0;                 // keep the N strongest per view; 0 = all
+  double contrast_threshold = 0.04;  // SIFT's contrastThreshold (Lowe: 0.03 on [0,1] / 3 layers)
+  double scale = 1.0;                // detect on the view resized by this factor, (0, 1]
+  bool use_mask = true;              // keypoints only where the mask is non-zero (when given)
+  bool roi = true;                   // detect only in the mask's bounding box (when given)
+  int roi_margin = 16;               // px at full resolution added around that box
+};
+
+// Keypoints in the coordinates of the full-resolution view that was passed in.
+struct Features {
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;       // CV_32F, one 128-float row per keypoint
+  cv::Rect region;           // the part of the view detection ran on (full resolution)
+  double scale = 1.0;        // the detection scale used
+  double ms = 0;             // wall time of the detection
+
+  std::size_t size() const { return keypoints.size(); }
+};
+
+// A view as 8-bit grey, without copying when it already is. Accepts CV_8UC1/3/4 (BGR/BGRA);
+// anything else throws std::runtime_error.
+cv::Mat to_gray8(const cv::Mat &view);
+
+// The region detection should run on: the bounding box of the mask's non-zero pixels grown by
+// `margin` and clipped to the view; the whole view when the mask is empty; an empty rect when
+// the mask has no non-zero pixel.
+cv::Rect detection_region(const cv::Size &view_size, const cv::Mat &mask, int margin);
+
+// One SIFT detector, created once and reused for every frame.
+//
+// Speed notes (OpenCV 4.6): SIFT always starts one octave below the input (firstOctave = -1,
+// the image is upsampled 2x with linear interpolation); the API has no switch for it and
+// `enable_precise_upscale` only exists from OpenCV 4.8. Detecting at scale 0.5 therefore still
+// builds a base octave at about the view's full size, but from an interpolated half-size image:
+// it costs roughly a quarter of full-resolution detection and finds the coarser keypoints.
+// Cropping to the canopy's box first is the other big saving.
+class FeatureDetector {
+public:
+  explicit FeatureDetector(const DetectParams &params = {});
+
+  // `view`: 8-bit grey, BGR or BGRA, possibly a ROI of a side-by-side frame. `mask`: empty, or
+  // CV_8U of the view's size. Throws std::runtime_error on bad input.
+  Features detect(const cv::Mat &view, const cv::Mat &mask = cv::Mat()) const;
+
+  const DetectParams &params() const { return params_; }
+
+private:
+  DetectParams params_;
+  cv::Ptr<cv::SIFT> sift_;
+};
+
+// One-shot convenience: creates a detector and runs it once.
+Features detect_features(const cv::Mat &view, const cv::Mat &mask, const DetectParams &params);
+
+} // namespace treestereo

@@ -1,0 +1,166 @@
+// Stereo matching of SIFT features between two rectified views: the plain nearest neighbour
+// on Euclidean distance and the paper's "improved" cosine-angle + descriptor-norm strategy,
+// both under the stereo constraints (epipolar band, disparity range, left-right consistency),
+// then sub-pixel refinement of the disparity at full resolution.
+#pragma once
+
+#include "treestereo/features.hpp"
+#include "treestereo/types.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <array>
+#include <cstddef>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace treestereo {
+
+enum class MatchMethod {
+  Euclidean,  // nearest neighbour on L2 distance + Lowe's ratio test
+  CosineNorm, // the paper: k smallest descriptor angles, then the smallest norm difference
+};
+
+// "euclidean" / "cosine-norm"; anything else throws std::runtime_error listing the names.
+MatchMethod parse_match_method(const std::string &name);
+const char *match_method_name(MatchMethod method);
+
+// Constraints of a rectified pair. Candidates are searched only where they hold, so a keypoint
+// whose true partner is ambiguous elsewhere in the image is not disturbed by it.
+struct StereoConstraints {
+  double epipolar_tolerance = 2.0; // |yl - yr| <= this (px); negative = off: every keypoint is a
+                                   // candidate, as in the paper
+  double min_disparity = -std::numeric_limits<double>::infinity(); // d = xl - xr (px)
+  double max_disparity = std::numeric_limits<double>::infinity();
+  bool mutual = true;              // keep a match only when matching back from the other view
+                                   // picks the same pair (left-right consistency)
+};
+
+struct DisparityRange {
+  double min = 0, max = 0;
+};
+// Disparities of points between z_near_mm and z_far_mm (0 < near < far) in front of the rectified
+// pair: d = fx * baseline / Z + doffs. Throws std::runtime_error on an invalid geometry/range.
+DisparityRange disparity_range_for_depth(const StereoGeometry &geometry, double z_near_mm,
+                                         double z_far_mm);
+
+struct MatchStats {
+  std::array<std::size_t, 2> keypoints{{0, 0}}; // per view (LEFT, RIGHT)
+  std::size_t matches = 0;                      // kept at the end
+  std::size_t candidates_tested = 0;            // descriptor comparisons, all directions
+  // Reference keypoints (or matches) dropped, by the first reason that dropped them.
+  std::size_t rejected_ratio = 0;     // ambiguous: best not clearly better than the second
+  std::size_t rejected_epipolar = 0;  // no keypoint of the other view within the band
+  std::size_t rejected_disparity = 0; // keypoints in the band, none in the disparity range
+  std::size_t rejected_mutual = 0;    // the other view's keypoint matched elsewhere
+  std::size_t rejected_refine = 0;    // no clear correlation peak near the match
+  double detect_ms = 0, match_ms = 0, refine_ms = 0; // wall times
+};
+
+struct MatcherParams {
+  MatchMethod method = MatchMethod::CosineNorm;
+  // Ratio test: keep a reference keypoint only when its best candidate's distance (euclidean:
+  // L2; cosine-norm: angle, as in Lowe's match.m) is below ratio x the second best's.
+  // A single candidate passes. >= 1 turns it off (the paper states no such test).
+  double ratio = 0.8;
+  int candidates = 5; // cosine-norm: how many smallest angles compete on the norm difference
+  StereoConstraints constraints;
+};
+
+// A descriptor matcher between the two views of a rectified pair.
+class Matcher {
+public:
+  virtual ~Matcher() = default;
+  virtual const char *name() const = 0;
+  // Matches in left/right view coordinates, sorted by left keypoint (row, then column), each
+  // pair once (SIFT repeats a keypoint per dominant orientation). Adds to `stats`
+  // (candidates_tested, rejected_*; not keypoints/matches/times).
+  virtual std::vector<StereoMatch> match(const Features &left, const Features &right,
+                                         MatchStats &stats) const = 0;
+};
+
+// Left is the reference; the nearest right descriptor in L2, then the ratio test.
+class EuclideanMatcher : public Matcher {
+public:
+  explicit EuclideanMatcher(const MatcherParams &params);
+  const char *name() const override { return "euclidean"; }
+  std::vector<StereoMatch> match(const Features &left, const Features &right,
+                                 MatchStats &stats) const override;
+
+private:
+  MatcherParams params_;
+};
+
+// The paper's strategy. The view with more keypoints is the reference; for each reference
+// descriptor the angle arccos(a.b / |a||b|) to every candidate of the other view is computed,
+// the `candidates` smallest are kept and the one with the smallest | |a| - |b| | wins.
+// Note: OpenCV normalises SIFT descriptors to a norm of 512 before rounding to integers, so the
+// norms only differ by rounding (510.6..513.4 on Jadeplant); the norm criterion then picks
+// nearly at random among the smallest angles. Score = the chosen angle (radians).
+class CosineNormMatcher : public Matcher {
+public:
+  explicit CosineNormMatcher(const MatcherParams &params);
+  const char *name() const override { return "cosine-norm"; }
+  std::vector<StereoMatch> match(const Features &left, const Features &right,
+                                 MatchStats &stats) const override;
+
+private:
+  MatcherParams params_;
+};
+
+std::unique_ptr<Matcher> make_matcher(const MatcherParams &params);
+
+// Sub-pixel disparity at full resolution: ZNCC of a (2*half_window+1)^2 patch around the left
+// keypoint (rounded to the pixel) against patches of the right view on the same row, at integer
+// offsets within +-search px of the matcher's estimate; a parabola through the best score and its
+// two neighbours gives the sub-pixel offset. A match is rejected when the best score is below
+// min_zncc, when the best offset is outside +-search (the estimate was off) or when the patch
+// leaves the image or has no texture. After refinement yr := yl: on a rectified pair the rows
+// agree, and the vertical offset of the detection carries no depth.
+struct RefineParams {
+  int half_window = 3;   // 7x7 patches: fewer straddle a depth edge than 11x11
+  int search = 2;        // px around the estimate
+  double min_zncc = 0.8; // the correlation peak must be at least this
+};
+
+// Refines `matches` in place and removes the rejected ones; returns how many were removed.
+// `left`, `right`: the full-resolution views (8-bit grey/BGR/BGRA, the same size).
+std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
+                           std::vector<StereoMatch> &matches, const RefineParams &params);
+
+struct MatchParams {
+  DetectParams detect;
+  MatcherParams matcher;
+  bool refine = true;
+  RefineParams refine_params;
+  bool parallel_detect = true; // detect the two views concurrently
+};
+
+struct StereoMatchResult {
+  std::vector<StereoMatch> matches;
+  MatchStats stats;
+};
+
+// Detection (both views), matching and refinement with detectors created once.
+class StereoMatcher {
+public:
+  explicit StereoMatcher(const MatchParams &params);
+  // Views: rectified, 8-bit grey/BGR/BGRA (ROIs of a side-by-side frame are fine). Masks: empty
+  // or CV_8U of the view's size (the vegetation). Throws std::runtime_error on bad input.
+  StereoMatchResult run(const cv::Mat &left, const cv::Mat &right, const cv::Mat &mask_left,
+                        const cv::Mat &mask_right) const;
+  const MatchParams &params() const { return params_; }
+
+private:
+  MatchParams params_;
+  FeatureDetector detector_[2];
+  std::unique_ptr<Matcher> matcher_;
+};
+
+// One-shot convenience around StereoMatcher.
+StereoMatchResult match_stereo(const cv::Mat &left, const cv::Mat &right, const cv::Mat &mask_left,
+                               const cv::Mat &mask_right, const MatchParams &params);
+
+} // namespace treestereo

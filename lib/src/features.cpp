@@ -1,0 +1,117 @@
+#include "treestereo/features.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+#include <stdexcept>
+#include <string>
+
+namespace treestereo {
+
+cv::Mat to_gray8(const cv::Mat &view)
+{
+  if (view.empty())
+    throw std::runtime_error("feature detection: the view is empty");
+  if (view.depth() != CV_8U)
+    throw std::runtime_error("feature detection: the view must be 8-bit (got depth " +
+                             std::to_string(view.depth()) + ")");
+  switch (view.channels()) {
+  case 1:
+    return view;
+  case 3: {
+    cv::Mat g;
+    cv::cvtColor(view, g, cv::COLOR_BGR2GRAY);
+    return g;
+  }
+  case 4: {
+    cv::Mat g;
+    cv::cvtColor(view, g, cv::COLOR_BGRA2GRAY);
+    return g;
+  }
+  default:
+    throw std::runtime_error("feature detection: the view must have 1, 3 or 4 channels (got " +
+                             std::to_string(view.channels()) + ")");
+  }
+}
+
+cv::Rect detection_region(const cv::Size &view_size, const cv::Mat &mask, int margin)
+{
+  const cv::Rect whole(cv::Point(0, 0), view_size);
+  if (mask.empty())
+    return whole;
+  if (mask.type() != CV_8UC1 || mask.size() != view_size)
+    throw std::runtime_error("feature detection: the mask must be CV_8UC1 of the view's size");
+  cv::Rect box = cv::boundingRect(mask); // bounding box of the non-zero pixels
+  if (box.area() == 0)
+    return cv::Rect();
+  box.x -= margin;
+  box.y -= margin;
+  box.width += 2 * margin;
+  box.height += 2 * margin;
+  return box & whole;
+}
+
+FeatureDetector::FeatureDetector(const DetectParams &params) : params_(params)
+{
+  if (!(params.scale > 0.0 && params.scale <= 1.0))
+    throw std::runtime_error("feature detection: scale must be in (0, 1], got " +
+                             std::to_string(params.scale));
+  if (params.nfeatures < 0)
+    throw std::runtime_error("feature detection: nfeatures must be >= 0");
+  if (!(params.contrast_threshold > 0.0))
+    throw std::runtime_error("feature detection: contrast_threshold must be > 0");
+  if (params.roi_margin < 0)
+    throw std::runtime_error("feature detection: roi_margin must be >= 0");
+  // Default layers (3), edge threshold (10) and sigma (1.6); float descriptors for the matchers.
+  sift_ = cv::SIFT::create(params.nfeatures, 3, params.contrast_threshold, 10.0, 1.6, CV_32F);
+}
+
+Features FeatureDetector::detect(const cv::Mat &view, const cv::Mat &mask) const
+{
+  const auto t0 = std::chrono::steady_clock::now();
+  const cv::Mat gray = to_gray8(view);
+  Features f;
+  f.scale = params_.scale;
+  const bool masked = params_.use_mask && !mask.empty();
+  f.region = (masked && params_.roi) ? detection_region(gray.size(), mask, params_.roi_margin)
+                                     : cv::Rect(cv::Point(0, 0), gray.size());
+  if (masked && (mask.type() != CV_8UC1 || mask.size() != gray.size()))
+    throw std::runtime_error("feature detection: the mask must be CV_8UC1 of the view's size");
+
+  // Too small for SIFT's border and descriptor support: nothing to find.
+  if (f.region.width * params_.scale >= 16 && f.region.height * params_.scale >= 16) {
+    cv::Mat img = gray(f.region), m = masked ? mask(f.region) : cv::Mat();
+    if (params_.scale != 1.0) {
+      cv::Mat small, small_mask;
+      cv::resize(img, small, cv::Size(), params_.scale, params_.scale, cv::INTER_AREA);
+      if (!m.empty())
+        cv::resize(m, small_mask, small.size(), 0, 0, cv::INTER_NEAREST);
+      img = small;
+      m = small_mask;
+    }
+    // An empty Mat is OpenCV's "no mask".
+    sift_->detectAndCompute(img, m, f.keypoints, f.descriptors);
+    // SIFT upsamples with cv::resize (pixel-centre aligned: U(i) = I(i/2 - 0.25)) but maps back
+    // by halving the coordinate, so every octave reports positions +0.25 px off (what OpenCV
+    // >= 4.8's enable_precise_upscale fixes). Then pixel centres: resized pixel i covers
+    // [i/s, (i+1)/s) of the crop.
+    constexpr float kSiftBias = 0.25f;
+    const float inv = float(1.0 / params_.scale);
+    for (cv::KeyPoint &kp : f.keypoints) {
+      kp.pt.x = (kp.pt.x - kSiftBias + 0.5f) * inv - 0.5f + float(f.region.x);
+      kp.pt.y = (kp.pt.y - kSiftBias + 0.5f) * inv - 0.5f + float(f.region.y);
+      kp.size *= inv;
+    }
+  }
+  if (f.descriptors.empty())
+    f.descriptors.create(0, 128, CV_32F);
+  f.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return f;
+}
+
+Features detect_features(const cv::Mat &view, const cv::Mat &mask, const DetectParams &params)
+{
+  return FeatureDetector(params).detect(view, mask);
+}
+
+} // namespace treestereo
