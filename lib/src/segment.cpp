@@ -31,11 +31,11 @@ Coding coding_of(VegIndex index)
 {
   switch (index) {
   case VegIndex::Exg:
-    return {-1, 2, -1, false, 1, 1, -510, 510, 1.0, 16.0};
+    return {-1, 2, -1, false, 1, 1, -510, 510, 1.0, 8.0};
   case VegIndex::ExgExr:
     return {-12, 15, -5, false, 1, 1, -17 * 255, 15 * 255, 1.0 / 5.0, 0.0};
   case VegIndex::ExgNorm:
-    return {-1, 2, -1, true, 512, 1, -512, 1024, 1.0 / 512.0, 0.05};
+    return {-1, 2, -1, true, 512, 1, -512, 1024, 1.0 / 512.0, 0.025};
   case VegIndex::ExgExrNorm:
     return {-12, 15, -5, true, 256, 5, -615, 768, 1.0 / 256.0, 0.0};
   }
@@ -416,7 +416,11 @@ void VegetationSegmenter::run(const cv::Mat &view, Silhouette &out)
   const int f = work_scale_for(view.size());
   coverage(tcode, f, out.mask);
 
-  const int ks = p.morph_size > 0 ? std::max(1, int(std::lround(double(p.morph_size) / f))) : 0;
+  // Odd sizes only: OpenCV does not mirror an even element between erosion and dilation, so
+  // an even one would shift the mask by a pixel at each open/close.
+  const int ks = p.morph_size > 0
+                     ? 2 * int(std::lround(std::max(0.0, (double(p.morph_size) / f - 1) / 2))) + 1
+                     : 0;
   if (ks > 1) {
     const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(ks, ks));
     cv::morphologyEx(bin_, tmp_, cv::MORPH_OPEN, kernel);
@@ -453,7 +457,7 @@ void VegetationSegmenter::run(const cv::Mat &view, Silhouette &out)
   cv::Rect bbox;
   std::size_t largest = 0;
   for (std::size_t i = 0; i < contours.size(); ++i) {
-    perimeter += region_perimeter(contours[i], p.contour_epsilon);
+    perimeter += region_perimeter(contours[i], p.contour_epsilon * f);
     const cv::Rect b = cv::boundingRect(contours[i]);
     bbox = bbox.empty() ? b : (bbox | b);
     const double a = cv::contourArea(contours[i]);

@@ -51,26 +51,28 @@ struct ChannelOrder {
 ChannelOrder channel_order_from_name(const std::string &format);
 
 struct SegmentParams {
-  VegIndex index = VegIndex::ExgExr;
+  VegIndex index = VegIndex::ExgNorm; // best on the real images, see docs/segmentation.md
   ChannelOrder order;
   // < 0: Otsu on the index histogram of the view (default). >= 0: fixed threshold in the
   // index's units (see VegIndex). A pixel is canopy when its index is strictly above it.
   double threshold = -1.0;
   // Otsu never goes below this (index units). A view without vegetation still has a bimodal
   // histogram (soil vs sky); the floor keeps Otsu from calling the greener half canopy.
-  // Unset: 16 for Exg, 0 for ExgExr, 0.05 for ExgNorm, 0 for ExgExrNorm.
+  // Unset: 8 for Exg, 0 for ExgExr, 0.025 for ExgNorm, 0 for ExgExrNorm.
   std::optional<double> otsu_floor;
   // Pixels with R+G+B below this are background and are left out of the histogram: their
   // chromaticity is sensor noise (and an all-black frame must not produce a canopy). >= 1.
   int dark_floor = 24;
   // Diameter (px) of the elliptic element of a morphological open then close; 0 = off.
+  // Rounded to the nearest odd size (at the work scale).
   // Opening removes specks smaller than it, closing fills gaps narrower than it.
   int morph_size = 5;
   KeepMode keep = KeepMode::Largest;
   // Regions smaller than this (px, after morphology) are dropped in both keep modes.
   double min_area = 64.0;
   // Contour simplification (px) before the perimeter is measured: removes the staircase of
-  // the pixel grid, which otherwise inflates a circle's perimeter by about 5.5 %.
+  // the pixel grid, which otherwise inflates a circle's perimeter by about 5.5 %. Multiplied
+  // by the work scale: the upscaled edge carries ripples of that period.
   double contour_epsilon = 1.0;
   // Morphology and connected components run on the mask reduced by this integer factor
   // (block coverage), and the kept regions come back to full size by linear interpolation of
