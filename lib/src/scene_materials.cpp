@@ -86,7 +86,7 @@ cv::Vec3f leaf_color(const LeafSample &leaf, const cv::Vec3d &p, const cv::Vec3d
 cv::Vec3f bark_color(double angle_mm, double y, const cv::Vec3d &normal, double footprint,
                      std::uint32_t tree_seed)
 {
-  const cv::Vec3f brown(104, 82, 72), grey(96, 90, 96);
+  const cv::Vec3f brown(108, 80, 70), grey(98, 86, 100);
   // Bark plates: long vertically, narrow around the trunk, with dark furrows.
   const float plates = value_noise2(angle_mm / 9.0, y / 70.0, tree_seed + 21U);
   const float furrow = smoothstep(0.25f, 0.45f, plates);
@@ -99,7 +99,7 @@ cv::Vec3f bark_color(double angle_mm, double y, const cv::Vec3d &normal, double 
 
 cv::Vec3f soil_color(double x, double z, double footprint, std::uint32_t seed)
 {
-  const cv::Vec3f brown(128, 98, 78), grey(114, 104, 108), dark(86, 66, 56);
+  const cv::Vec3f brown(138, 98, 74), grey(120, 102, 116), dark(94, 62, 52);
   const float big = fbm2(x, z, 900.0, 2, footprint, seed + 31U);
   const float mid = fbm2(x, z, 110.0, 3, footprint, seed + 32U);
   const float fine = fbm2(x, z, 14.0, 3, footprint, seed + 33U);
@@ -111,7 +111,7 @@ cv::Vec3f soil_color(double x, double z, double footprint, std::uint32_t seed)
   if (w > 0.0f) {
     const float stone = value_noise2(x / 30.0, z / 30.0, seed + 34U);
     const float rim = w * smoothstep(0.84f, 0.87f, stone);
-    const cv::Vec3f pebble = cv::Vec3f(158, 146, 150) * (0.6f + 0.6f * stone);
+    const cv::Vec3f pebble = cv::Vec3f(160, 142, 154) * (0.6f + 0.6f * stone);
     c = mix(c * (1.0f - 0.3f * w * smoothstep(0.76f, 0.84f, stone)), pebble, rim);
   }
   return c * (0.3f + 0.7f * lambert(cv::Vec3d(0, -1, 0)));
@@ -127,8 +127,8 @@ cv::Vec3f wall_color(double x, double height, double footprint, std::uint32_t se
   const double joint = std::min(std::min(u, 400.0 - u), std::min(v, 200.0 - v));
   const float in_block = smoothstep(6.0f, 6.0f + float(std::max(2.0, footprint)), float(joint));
   const std::uint32_t h = hash3(std::int64_t(col), std::int64_t(row), 0, seed + 41U);
-  const cv::Vec3f block = cv::Vec3f(172, 156, 150) * (0.82f + 0.3f * unit(h));
-  const cv::Vec3f mortar(120, 112, 114);
+  const cv::Vec3f block = cv::Vec3f(178, 150, 146) * (0.82f + 0.3f * unit(h));
+  const cv::Vec3f mortar(124, 106, 114);
   cv::Vec3f c = mix(mortar, block, in_block);
   const float stains = fbm2(x, height, 350.0, 3, footprint, seed + 42U);
   const float grain = fbm2(x, height, 24.0, 3, footprint, seed + 43U);
