@@ -347,6 +347,21 @@ static void advance_position(GstAggregator *agg, GstClockTime rt, GstClockTime d
     seg->position = rt + (GST_CLOCK_TIME_IS_VALID(duration) ? duration : 0);
 }
 
+/* Metas that do not depend on the pixels (no tags: e.g. treetestsrc's ground truth) travel
+ * from the left frame to the pair. */
+static void copy_untagged_metas(GstBuffer *in, GstBuffer *out)
+{
+  gpointer state = nullptr;
+  GstMeta *meta;
+  GstMetaTransformCopy copy = {FALSE, 0, G_MAXSIZE};
+  while ((meta = gst_buffer_iterate_meta(in, &state))) {
+    const gchar *const *tags = gst_meta_api_type_get_tags(meta->info->api);
+    if ((tags && tags[0]) || !meta->info->transform_func)
+      continue;
+    meta->info->transform_func(out, meta, in, _gst_meta_transform_copy, &copy);
+  }
+}
+
 static GstFlowReturn compose_pair(GstStereoRectify *self, GstBuffer *in[2], GstClockTime rt[2])
 {
   GstAggregator *agg = GST_AGGREGATOR(self);
@@ -387,6 +402,7 @@ static GstFlowReturn compose_pair(GstStereoRectify *self, GstBuffer *in[2], GstC
     return GST_FLOW_ERROR;
   }
 
+  copy_untagged_metas(in[LEFT], out);
   GstTreeStereoGeometryMeta *meta = gst_buffer_add_tree_stereo_geometry_meta(out);
   treestereo::gst::geometry_to_meta(st->rect.geometry, meta);
   meta->side_by_side = TRUE;
