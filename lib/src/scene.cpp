@@ -315,7 +315,7 @@ Hit trace(const TraceContext &cx, const Vec3d &o, const Vec3d &d, const std::uin
     const Vec3d n = ellipsoid_normal(c, pt);
     const double grazing = 1.0 - std::abs(n.dot(d)) / std::sqrt(d.dot(d));
     const Vec3d local(pt[0] - tree.x, pt[1], pt[2] - tree.z);
-    const auto leaf = scene_materials::leaf_sample(local, grazing, tree.seed, p.gap_fraction);
+    const auto leaf = scene_materials::leaf_sample(local, n, grazing, tree.seed, p.gap_fraction);
     if (leaf.hole)
       continue;
     return shade_leaf(cx, tree, n, pt, d, x.t, x.entry, leaf);
