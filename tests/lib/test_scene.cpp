@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <thread>
 
 using namespace treestereo;
 
@@ -470,4 +471,18 @@ TEST(Scene, DrivingAlongTheRowShiftsTheSceneAndTheTexturesWithIt)
               median(diff));
   EXPECT_GT(diff.size(), 500u);
   EXPECT_LT(median(diff), 4.0);
+}
+
+// Two GStreamer sources render the two views of one renderer at the same time.
+TEST(Scene, ConcurrentRendersEqualSequentialOnes)
+{
+  SceneRenderer r(vga());
+  cv::Mat seq[2], par[2];
+  r.render(0, 3, seq[0]);
+  r.render(1, 3, seq[1]);
+  std::thread t([&] { r.render(1, 3, par[1]); });
+  r.render(0, 3, par[0]);
+  t.join();
+  EXPECT_EQ(cv::norm(seq[0], par[0], cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(seq[1], par[1], cv::NORM_INF), 0.0);
 }
