@@ -137,7 +137,7 @@ TEST(Scene, DepthRoundTripsThroughTheCameraModelAndLiesOnTheSurfaces)
     cv::projectPoints(pts, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), M, D, back);
     for (std::size_t i = 0; i < pts.size(); ++i)
       worst_px = std::max(worst_px, cv::norm(back[i] - pix[i]));
-    std::printf("view %d: round trip worst %.4f px over %zu pixels; worst off-surface: ground "
+    std::printf("view %d: round trip worst %.1e px over %zu pixels; worst off-surface: ground "
                 "%.3f mm, wall %.3f mm, trunk %.3f mm\n",
                 view, worst_px, pts.size(), worst_ground, worst_wall, worst_trunk);
     EXPECT_LT(worst_px, 0.05);
