@@ -97,8 +97,8 @@ StereoCalibration rig_calibration(const SceneParams &p)
   };
   StereoCalibration c;
   c.image_size = p.image_size;
-  c.M1 = camera(3503.12, 3504.61, 1307.31, 967.84);
-  c.M2 = camera(3511.25, 3511.71, 1298.93, 960.13);
+  c.M1 = camera(3503.12, 3504.61, 1207.31, 967.84);
+  c.M2 = camera(3511.25, 3511.71, 1198.93, 960.13);
   // An 8 mm lens on a 5.7 mm sensor: about 1 % barrel distortion in the corners.
   c.D1 = (cv::Mat_<double>(1, 5) << -0.082, 0.134, 0.00041, -0.00032, -0.031);
   c.D2 = (cv::Mat_<double>(1, 5) << -0.077, 0.118, -0.00028, 0.00037, -0.024);
@@ -315,7 +315,7 @@ Hit trace(const TraceContext &cx, const Vec3d &o, const Vec3d &d, const std::uin
     const Vec3d n = ellipsoid_normal(c, pt);
     const double grazing = 1.0 - std::abs(n.dot(d)) / std::sqrt(d.dot(d));
     const Vec3d local(pt[0] - tree.x, pt[1], pt[2] - tree.z);
-    const auto leaf = scene_materials::leaf_sample(local, grazing, tree.seed, p.gap_fraction);
+    const auto leaf = scene_materials::leaf_sample(local, n, grazing, tree.seed, p.gap_fraction);
     if (leaf.hole)
       continue;
     return shade_leaf(cx, tree, n, pt, d, x.t, x.entry, leaf);

@@ -34,8 +34,8 @@ cv::Vec3d light_direction()
   return l;
 }
 
-LeafSample leaf_sample(const cv::Vec3d &p, double grazing, std::uint32_t tree_seed,
-                       double gap_fraction)
+LeafSample leaf_sample(const cv::Vec3d &p, const cv::Vec3d &normal, double grazing,
+                       std::uint32_t tree_seed, double gap_fraction)
 {
   const Cell c = worley(p[0] / kLeafCellX, p[1] / kLeafCellY, p[2] / kLeafCellZ, tree_seed);
   // Gaps cluster: a slow noise makes some parts of the canopy sparse, others dense.
@@ -48,6 +48,19 @@ LeafSample leaf_sample(const cv::Vec3d &p, double grazing, std::uint32_t tree_se
   s.f2 = c.f2;
   s.id = c.id;
   s.hole = unit(hash32(c.id ^ 0x5bd1e995U)) < gap;
+  // Each leaf is an ellipse about its feature point, its axis a random direction in the
+  // surface (in the cell space the cellular noise works in).
+  const cv::Vec3f n(float(normal[0] * kLeafCellX), float(normal[1] * kLeafCellY),
+                    float(normal[2] * kLeafCellZ)); // normals transform with the inverse scale
+  const cv::Vec3f nn = cv::normalize(n);
+  cv::Vec3f axis(unit(hash32(c.id ^ 0x6U)) - 0.5f, unit(hash32(c.id ^ 0x7U)) - 0.5f,
+                 unit(hash32(c.id ^ 0x8U)) - 0.5f);
+  axis -= nn * axis.dot(nn);
+  axis = cv::normalize(axis);
+  cv::Vec3f off(c.off[0], c.off[1], c.off[2]);
+  off -= nn * off.dot(nn);
+  s.along = off.dot(axis);
+  s.across = std::sqrt(std::max(0.0f, off.dot(off) - s.along * s.along));
   return s;
 }
 
@@ -69,8 +82,15 @@ cv::Vec3f leaf_color(const LeafSample &leaf, const cv::Vec3d &p, const cv::Vec3d
 
   // Dark seams between leaves (shadowed gaps), at least ~1.5 px wide so they do not alias.
   const double cell = 0.5 * (kLeafCellX + kLeafCellY);
-  const float seam_width = float(std::max(0.08, 1.5 * footprint / cell));
-  const float seam = 0.35f + 0.65f * smoothstep(0.0f, seam_width, leaf.f2 - leaf.f1);
+  const float edge_width = float(std::max(0.08, 1.5 * footprint / cell));
+  const float seam = 0.35f + 0.65f * smoothstep(0.0f, edge_width, leaf.f2 - leaf.f1);
+  // The leaf blade: an ellipse 1.8 x 1.0 cells; around it the shadowed leaves further in.
+  const float a = leaf.along / 0.9f, b = leaf.across / 0.5f;
+  const float blade = smoothstep(1.0f + 2.0f * edge_width, 1.0f, std::sqrt(a * a + b * b));
+  // The midrib, where it is at least a pixel and a half wide.
+  const float rib_fade = octave_weight(0.15 * cell, footprint);
+  const float rib = 1.0f - 0.25f * rib_fade * (1.0f - smoothstep(0.0f, 0.06f, leaf.across));
+  const float leafness = blade * rib + (1.0f - blade) * 0.5f;
 
   // Veins and speckles: fine detail for the feature detector at full resolution.
   const float vein = fbm(p[0], p[1], p[2], 9.0, 3, footprint, tree_seed + 11U);
@@ -80,7 +100,7 @@ cv::Vec3f leaf_color(const LeafSample &leaf, const cv::Vec3d &p, const cv::Vec3d
   float ao = 1.0f - 0.55f * smoothstep(0.0f, 0.9f, float(depth_in_canopy));
   if (inner)
     ao *= 0.65f;
-  return c * (shade * seam * detail * ao);
+  return c * (shade * seam * leafness * detail * ao);
 }
 
 cv::Vec3f bark_color(double angle_mm, double y, const cv::Vec3d &normal, double footprint,

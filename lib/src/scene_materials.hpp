@@ -17,12 +17,13 @@ cv::Vec3d light_direction();
 struct LeafSample {
   float f1 = 0, f2 = 0;   // cellular distances (cell units)
   std::uint32_t id = 0;   // the leaf
+  float along = 0, across = 0; // offset from the leaf's centre along/across its axis (cells)
   bool hole = false;
 };
-// p_tree: the point relative to the trunk axis (mm); grazing: 1 - |cos| of the angle between
-// the ray and the cluster's surface normal (1 = seen edge-on).
-LeafSample leaf_sample(const cv::Vec3d &p_tree, double grazing, std::uint32_t tree_seed,
-                       double gap_fraction);
+// p_tree: the point relative to the trunk axis (mm); normal: the cluster's unit surface normal
+// there; grazing: 1 - |cos| of the angle between the ray and the normal (1 = seen edge-on).
+LeafSample leaf_sample(const cv::Vec3d &p_tree, const cv::Vec3d &normal, double grazing,
+                       std::uint32_t tree_seed, double gap_fraction);
 
 // Colour of a leaf. normal: unit surface normal facing the camera; depth_in_canopy: 0 at the
 // canopy's outer envelope, 1 at its centre; inner: the point is on the inside of a cluster's

@@ -140,6 +140,7 @@ inline float fbm2(double x, double y, double wavelength, int octaves, double foo
 struct Cell {
   float f1 = 1e9f, f2 = 1e9f; // distances to the nearest and second-nearest feature points
   std::uint32_t id = 0;       // hash of the nearest feature's cell
+  float off[3] = {0, 0, 0};   // from the point to the nearest feature
 };
 
 inline Cell worley(double x, double y, double z, std::uint32_t seed)
@@ -157,7 +158,7 @@ inline Cell worley(double x, double y, double z, std::uint32_t seed)
     for (int dy = 0; dy < 3; ++dy)
       hyz[dz][dy] = hash_y(iy + dy - 1, hz);
   }
-  float d1 = 1e9f, d2 = 1e9f;
+  float d1 = 1e9f, d2 = 1e9f, off[3] = {0, 0, 0};
   std::uint32_t id = 0;
   // The own cell first, then face, edge and corner neighbours, so pruning bites early.
   static constexpr signed char order[27][3] = {
@@ -180,11 +181,19 @@ inline Cell worley(double x, double y, double z, std::uint32_t seed)
       d2 = d1;
       d1 = d;
       id = h;
+      off[0] = fx;
+      off[1] = fy;
+      off[2] = fz;
     } else if (d < d2) {
       d2 = d;
     }
   }
-  return Cell{std::sqrt(d1), std::sqrt(d2), id};
+  Cell c;
+  c.f1 = std::sqrt(d1);
+  c.f2 = std::sqrt(d2);
+  c.id = id;
+  std::copy(off, off + 3, c.off);
+  return c;
 }
 
 } // namespace scene_noise

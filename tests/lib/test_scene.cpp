@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <thread>
 
 using namespace treestereo;
 
@@ -136,7 +137,7 @@ TEST(Scene, DepthRoundTripsThroughTheCameraModelAndLiesOnTheSurfaces)
     cv::projectPoints(pts, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), M, D, back);
     for (std::size_t i = 0; i < pts.size(); ++i)
       worst_px = std::max(worst_px, cv::norm(back[i] - pix[i]));
-    std::printf("view %d: round trip worst %.4f px over %zu pixels; worst off-surface: ground "
+    std::printf("view %d: round trip worst %.1e px over %zu pixels; worst off-surface: ground "
                 "%.3f mm, wall %.3f mm, trunk %.3f mm\n",
                 view, worst_px, pts.size(), worst_ground, worst_wall, worst_trunk);
     EXPECT_LT(worst_px, 0.05);
@@ -470,4 +471,18 @@ TEST(Scene, DrivingAlongTheRowShiftsTheSceneAndTheTexturesWithIt)
               median(diff));
   EXPECT_GT(diff.size(), 500u);
   EXPECT_LT(median(diff), 4.0);
+}
+
+// Two GStreamer sources render the two views of one renderer at the same time.
+TEST(Scene, ConcurrentRendersEqualSequentialOnes)
+{
+  SceneRenderer r(vga());
+  cv::Mat seq[2], par[2];
+  r.render(0, 3, seq[0]);
+  r.render(1, 3, seq[1]);
+  std::thread t([&] { r.render(1, 3, par[1]); });
+  r.render(0, 3, par[0]);
+  t.join();
+  EXPECT_EQ(cv::norm(seq[0], par[0], cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(seq[1], par[1], cv::NORM_INF), 0.0);
 }

@@ -115,8 +115,10 @@ public:
   const SceneParams &params() const;
   const StereoCalibration &calibration() const;
 
-  // Renders view 0 (left) or 1 (right) of `frame` into rgb (CV_8UC3, R,G,B order, reallocated
-  // to image_size when needed). When truth is not null it receives the ground truth.
+  // Renders view 0 (left) or 1 (right) of `frame` into rgb (CV_8UC3, R,G,B order). When rgb
+  // already has image_size and that type it is written in place (a wrapped buffer with any row
+  // stride works), otherwise it is reallocated. When truth is not null it receives the ground
+  // truth. Cost: the canopy's pixels dominate; see bench/bench_render.cpp.
   void render(int view, std::uint64_t frame, cv::Mat &rgb, GroundTruth *truth = nullptr) const;
 
   // The undistorted normalised coordinates (X/Z, Y/Z) of every pixel's ray in that view's
