@@ -22,7 +22,8 @@
  *
  * ## Example launch lines
  * |[
- * gst-launch-1.0 stereorectify name=r calibration=calib.yml ! videoconvert ! autovideosink \
+ * gst-launch-1.0 treetestsrc num-buffers=1 calibration-out=rig.yml ! fakesink
+ * gst-launch-1.0 stereorectify name=r calibration=rig.yml ! videoconvert ! autovideosink \
  *   treetestsrc view=left ! r.left   treetestsrc view=right ! r.right
  * ]|
  * |[

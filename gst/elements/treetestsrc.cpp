@@ -22,9 +22,12 @@
  * gst-launch-1.0 treetestsrc view=left num-buffers=10 ! videoconvert ! pngenc ! \
  *   multifilesink location=left_%04d.png
  * ]|
+ * The rig's calibration is known once the frame size is: write it first, then pair the views
+ * (stereorectify loads its calibration before the sources negotiate):
  * |[
+ * gst-launch-1.0 treetestsrc num-buffers=1 calibration-out=rig.yml ! fakesink
  * gst-launch-1.0 stereorectify name=r calibration=rig.yml ! videoconvert ! autovideosink \
- *   treetestsrc view=left calibration-out=rig.yml ! r.left  treetestsrc view=right ! r.right
+ *   treetestsrc view=left ! r.left  treetestsrc view=right ! r.right
  * ]|
  */
 #ifdef HAVE_CONFIG_H
