@@ -57,6 +57,12 @@
  *   stereodepth ! treemetrics bands=6 smoothing=0.6 ! fakesink \
  *   treetestsrc view=left ! r.left   treetestsrc view=right ! r.right
  * ]|
+ * |[
+ * gst-launch-1.0 -m stereorectify name=r calibration=docs/examples/calibration-mer500.yml ! \
+ *   stereodepth mode=dense min-depth=1000 max-depth=5000 ! treemetrics ! fakesink \
+ *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 ! r.left \
+ *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 ! r.right
+ * ]|
  */
 #ifdef HAVE_CONFIG_H
 #include "config.h"
