@@ -73,6 +73,21 @@ MappedFrame::~MappedFrame()
     gst_video_frame_unmap(&frame_);
 }
 
+cv::Mat gray_view(const cv::Mat &view, const PixelLayout &l)
+{
+  if (l.channels == 1)
+    return view;
+  if (l.channels != view.channels())
+    throw std::runtime_error("gray_view: the pixel layout does not match the frame");
+  cv::Matx<float, 1, 4> w = cv::Matx<float, 1, 4>::zeros();
+  w(0, l.r) = 0.299f;
+  w(0, l.g) = 0.587f;
+  w(0, l.b) = 0.114f;
+  cv::Mat out;
+  cv::transform(view, out, cv::Mat(w).colRange(0, l.channels));
+  return out;
+}
+
 int n_views_of(const GstVideoInfo *info)
 {
   return GST_VIDEO_INFO_MULTIVIEW_MODE(info) == GST_VIDEO_MULTIVIEW_MODE_SIDE_BY_SIDE ? 2 : 1;
@@ -175,6 +190,62 @@ Silhouette silhouette_from_view(const GstTreeStereoVegetationView *v, GstMapInfo
       gst_buffer_unmap(v->mask, mask_map);
   }
   return s;
+}
+
+MappedSilhouette::MappedSilhouette(const GstTreeStereoVegetationView *view)
+{
+  if (!view)
+    return;
+  silhouette_ = silhouette_from_view(view, &map_);
+  if (!silhouette_.mask.empty()) // silhouette_from_view mapped it
+    mask_ = gst_buffer_ref(view->mask);
+}
+
+MappedSilhouette::~MappedSilhouette()
+{
+  silhouette_.mask.release();
+  if (mask_) {
+    gst_buffer_unmap(mask_, &map_);
+    gst_buffer_unref(mask_);
+  }
+}
+
+void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out)
+{
+  gst_tree_stereo_metrics_clear(out);
+  out->tree_present = m.tree_present;
+  if (!m.tree_present)
+    return; // all zero: never a value that means nothing
+  out->distance_m = m.distance_m;
+  out->height_m = m.height_m;
+  out->width_m = m.width_m;
+  out->thickness_m = m.thickness_m;
+  out->area_m2 = m.area_m2;
+  out->perimeter_m = m.perimeter_m;
+  out->complexity = m.complexity;
+  out->centroid_m[0] = m.centroid_m.x;
+  out->centroid_m[1] = m.centroid_m.y;
+  out->centroid_m[2] = m.centroid_m.z;
+  out->clipped = guint((m.clipped.top ? GST_TREE_STEREO_CLIPPED_TOP : 0) |
+                       (m.clipped.bottom ? GST_TREE_STEREO_CLIPPED_BOTTOM : 0) |
+                       (m.clipped.left ? GST_TREE_STEREO_CLIPPED_LEFT : 0) |
+                       (m.clipped.right ? GST_TREE_STEREO_CLIPPED_RIGHT : 0));
+  out->n_points = guint(m.points);
+  out->n_matches = guint(m.matches);
+  gst_tree_stereo_metrics_set_n_bands(out, guint(m.bands.size()));
+  for (std::size_t i = 0; i < m.bands.size(); i++) {
+    const Band &b = m.bands[i];
+    GstTreeStereoBand &o = out->bands[i];
+    o.present = b.present;
+    if (!b.present)
+      continue;
+    o.top_m = b.top_m;
+    o.bottom_m = b.bottom_m;
+    o.left_m = b.left_m;
+    o.right_m = b.right_m;
+    o.width_m = b.width_m;
+    o.depth_m = b.depth_m;
+  }
 }
 
 static GstBufferPool *configured_pool(GstBufferPool *pool, GstCaps *caps, guint size, guint min,

@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "treestereo/metrics.hpp"
 #include "treestereo/types.hpp"
 
 #include <exception>
@@ -51,6 +52,10 @@ private:
   bool mapped_ = false;
 };
 
+/* A view as 8-bit grey (Rec. 601 weights from the layout's R, G, B): the view itself for GRAY8,
+ * otherwise a converted copy. Padding bytes (x) of 4-byte formats do not count. */
+cv::Mat gray_view(const cv::Mat &view, const PixelLayout &layout);
+
 /* How many views a frame of these caps holds: 2 with multiview-mode=side-by-side, else 1. */
 int n_views_of(const GstVideoInfo *info);
 
@@ -62,6 +67,25 @@ void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *meta);
 void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *view);
 /* Vegetation view of the meta -> silhouette; the mask is wrapped (valid while @mask_map is). */
 Silhouette silhouette_from_view(const GstTreeStereoVegetationView *view, GstMapInfo *mask_map);
+
+/* The silhouette of a vegetation view with its mask mapped for as long as this lives: the
+ * mask is unmapped and released in the destructor. A NULL view gives an empty silhouette. */
+class MappedSilhouette {
+public:
+  explicit MappedSilhouette(const GstTreeStereoVegetationView *view);
+  ~MappedSilhouette();
+  MappedSilhouette(const MappedSilhouette &) = delete;
+  MappedSilhouette &operator=(const MappedSilhouette &) = delete;
+  const Silhouette &get() const { return silhouette_; }
+
+private:
+  GstBuffer *mask_ = nullptr; // a ref, set while mapped
+  GstMapInfo map_{};
+  Silhouette silhouette_;
+};
+
+/* lib/'s tree metrics -> the meta/message figures (@out is cleared first; metres as in lib). */
+void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out);
 
 /* decide_allocation for an element that produces whole video frames of the query's caps: keeps
  * downstream's pool when it takes our config, else a GstVideoBufferPool, sized for a frame. */

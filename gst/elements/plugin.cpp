@@ -10,6 +10,8 @@ static gboolean plugin_init(GstPlugin *plugin)
   gboolean ret = FALSE;
   ret |= GST_ELEMENT_REGISTER(stereorectify, plugin);
   ret |= GST_ELEMENT_REGISTER(treetestsrc, plugin);
+  ret |= GST_ELEMENT_REGISTER(stereodepth, plugin);
+  ret |= GST_ELEMENT_REGISTER(treemetrics, plugin);
   return ret;
 }
 

@@ -865,12 +865,15 @@ gst_tree_stereo_depth_message_structure (gboolean dense, const GstTreeStereoDept
       "mode", G_TYPE_STRING, dense ? "dense" : "sparse",
       "points", G_TYPE_UINT, st->n_points,
       "valid", G_TYPE_UINT, st->n_valid,
+      "dropped-disparity", G_TYPE_UINT, st->dropped_disparity,
       "dropped-range", G_TYPE_UINT, st->dropped_range,
       "dropped-outlier", G_TYPE_UINT, st->dropped_outlier,
       "median-depth", G_TYPE_DOUBLE, st->median_z_mm,
       "mad-depth", G_TYPE_DOUBLE, st->mad_z_mm,
       "p05-depth", G_TYPE_DOUBLE, st->p05_z_mm,
-      "p95-depth", G_TYPE_DOUBLE, st->p95_z_mm, NULL);
+      "p95-depth", G_TYPE_DOUBLE, st->p95_z_mm,
+      "accept-min-depth", G_TYPE_DOUBLE, st->accept_lo_mm,
+      "accept-max-depth", G_TYPE_DOUBLE, st->accept_hi_mm, NULL);
   set_times (s, times);
   return s;
 }
@@ -892,12 +895,15 @@ gst_tree_stereo_depth_message_parse (const GstStructure * s, gboolean * dense,
   return gst_structure_get (s,
       "points", G_TYPE_UINT, &st->n_points,
       "valid", G_TYPE_UINT, &st->n_valid,
+      "dropped-disparity", G_TYPE_UINT, &st->dropped_disparity,
       "dropped-range", G_TYPE_UINT, &st->dropped_range,
       "dropped-outlier", G_TYPE_UINT, &st->dropped_outlier,
       "median-depth", G_TYPE_DOUBLE, &st->median_z_mm,
       "mad-depth", G_TYPE_DOUBLE, &st->mad_z_mm,
       "p05-depth", G_TYPE_DOUBLE, &st->p05_z_mm,
-      "p95-depth", G_TYPE_DOUBLE, &st->p95_z_mm, NULL) && get_times (s, times);
+      "p95-depth", G_TYPE_DOUBLE, &st->p95_z_mm,
+      "accept-min-depth", G_TYPE_DOUBLE, &st->accept_lo_mm,
+      "accept-max-depth", G_TYPE_DOUBLE, &st->accept_hi_mm, NULL) && get_times (s, times);
 }
 
 /* Field names of the metrics, raw ("distance") or smoothed ("smoothed-distance"). */

@@ -232,6 +232,9 @@ typedef struct {
  * @mad_z_mm: median absolute deviation of the kept depths
  * @p05_z_mm: 5th percentile of the kept depths
  * @p95_z_mm: 95th percentile
+ * @dropped_disparity: points without a finite depth (disparity - doffs <= 0); not in @n_valid
+ * @accept_lo_mm: nearest depth accepted after the range and outlier cuts (0 when none kept)
+ * @accept_hi_mm: farthest depth accepted after the range and outlier cuts (0 when none kept)
  */
 typedef struct {
   guint n_points;
@@ -242,6 +245,9 @@ typedef struct {
   gdouble mad_z_mm;
   gdouble p05_z_mm;
   gdouble p95_z_mm;
+  guint dropped_disparity;
+  gdouble accept_lo_mm;
+  gdouble accept_hi_mm;
 } GstTreeStereoDepthStats;
 
 /**
@@ -488,8 +494,9 @@ GstStructure *gst_tree_stereo_match_message_structure (const GstTreeStereoMatchS
 gboolean gst_tree_stereo_match_message_parse (const GstStructure *s,
     GstTreeStereoMatchStats *stats, GstTreeStereoTimes *times);
 
-/* stereodepth: "mode" ("sparse"/"dense"), "points", "valid", "dropped-range",
- * "dropped-outlier", "median-depth", "mad-depth", "p05-depth", "p95-depth" (mm). */
+/* stereodepth: "mode" ("sparse"/"dense"), "points", "valid", "dropped-disparity",
+ * "dropped-range", "dropped-outlier", "median-depth", "mad-depth", "p05-depth", "p95-depth",
+ * "accept-min-depth", "accept-max-depth" (mm). */
 GstStructure *gst_tree_stereo_depth_message_structure (gboolean dense,
     const GstTreeStereoDepthStats *stats, const GstTreeStereoTimes *times);
 gboolean gst_tree_stereo_depth_message_parse (const GstStructure *s, gboolean *dense,

@@ -1,0 +1,490 @@
+/**
+ * SECTION:element-stereodepth
+ * @title: stereodepth
+ *
+ * Turns stereo correspondences into depth: Z = b·fx / (d - doffs) and the full 3D point
+ * X = (xl - cx)·Z / fx, Y = (yl - cy)·Z / fy (what the geometry's Q matrix computes), in the
+ * rectified-left camera frame (x right, y down, z forward), millimetres. The points are then
+ * cleaned for the canopy: points nearer than #stereodepth:min-depth or farther than
+ * #stereodepth:max-depth are dropped, then outliers of the remaining depths (|Z - median| >
+ * #stereodepth:outlier-k · 1.4826 · MAD). Dropped points stay in the meta with valid=FALSE and
+ * every drop is counted.
+ *
+ * - `mode=sparse` (default) triangulates the matches of siftmatch's #GstTreeStereoMatchesMeta;
+ *   the pixels are not touched (not even mapped). Missing matches meta: an error naming
+ *   siftmatch.
+ * - `mode=dense` runs OpenCV's StereoSGBM (3-way) on the canopy's bounding box of the left view
+ *   (and the columns of the right view a match can come from), keeps the pixels of the
+ *   vegetation mask, and attaches the depth map (GRAY16_LE, mm, 0 = unknown) to the points meta;
+ *   the points are a grid of every #stereodepth:sample-step th canopy pixel, their match_index
+ *   the left-view pixel index y·width + x. The frame must hold both views side by side. Without
+ *   a vegetation meta the whole left view is matched, unmasked; when the vegetation meta says
+ *   there is no canopy nothing is matched and the points meta is empty.
+ *
+ * Both modes need stereorectify's #GstTreeStereoGeometryMeta (missing: an error naming
+ * stereorectify). The element works in place and adds a #GstTreeStereoPointsMeta.
+ *
+ * ## Element message
+ *
+ * With #stereodepth:post-messages, an element message named `stereodepth` per buffer with the
+ * same figures as the meta's #GstTreeStereoDepthStats:
+ *
+ * - `mode`: #gchararray, "sparse" or "dense"
+ * - `points`: #guint, points computed (valid or not)
+ * - `valid`: #guint, points kept
+ * - `dropped-disparity`: #guint, points without a finite depth (disparity - doffs <= 0)
+ * - `dropped-range`: #guint, dropped as outside [min-depth, max-depth]
+ * - `dropped-outlier`: #guint, dropped by the median/MAD cut
+ * - `median-depth`: #gdouble, median Z of the kept points, mm (0 when none)
+ * - `mad-depth`: #gdouble, median absolute deviation of the kept Z, mm (unscaled)
+ * - `p05-depth`, `p95-depth`: #gdouble, 5th and 95th percentile of the kept Z, mm
+ * - `accept-min-depth`, `accept-max-depth`: #gdouble, the depth interval kept after the range
+ *   and outlier cuts, mm (0 when nothing is kept)
+ * - `timestamp`, `stream-time`, `running-time`: #guint64, ns, of the buffer
+ *
+ * ## Example launch line
+ * |[
+ * gst-launch-1.0 -m stereorectify name=r calibration=calib.yml ! exgsegment ! siftmatch ! \
+ *   stereodepth max-depth=6000 ! treemetrics ! fakesink \
+ *   treetestsrc view=left ! r.left   treetestsrc view=right ! r.right
+ * ]|
+ * |[
+ * gst-launch-1.0 -m stereorectify name=r calibration=docs/examples/calibration-mer500.yml ! \
+ *   stereodepth mode=dense min-depth=1000 max-depth=5000 ! treemetrics ! fakesink \
+ *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 ! r.left \
+ *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 ! r.right
+ * ]|
+ */
+#ifdef HAVE_CONFIG_H
+#include "config.h"
+#endif
+
+#include "common.hpp"
+#include "elements.hpp"
+
+#include "treestereo/depth.hpp"
+
+#include <gst/base/gstbasetransform.h>
+
+#include <mutex>
+#include <vector>
+
+GST_DEBUG_CATEGORY_STATIC(stereodepth_debug);
+#define GST_CAT_DEFAULT stereodepth_debug
+
+using namespace treestereo;
+
+typedef enum {
+  GST_STEREO_DEPTH_MODE_SPARSE = 0,
+  GST_STEREO_DEPTH_MODE_DENSE = 1,
+} GstStereoDepthMode;
+
+#define GST_TYPE_STEREO_DEPTH_MODE (gst_stereo_depth_mode_get_type())
+static GType gst_stereo_depth_mode_get_type(void)
+{
+  static GType type = 0;
+  static const GEnumValue values[] = {
+      {GST_STEREO_DEPTH_MODE_SPARSE, "Triangulate siftmatch's matches", "sparse"},
+      {GST_STEREO_DEPTH_MODE_DENSE, "Semi-global block matching on the canopy's box", "dense"},
+      {0, nullptr, nullptr},
+  };
+  if (g_once_init_enter(&type)) {
+    GType t = g_enum_register_static("GstStereoDepthMode", values);
+    g_once_init_leave(&type, t);
+  }
+  return type;
+}
+
+#define DEFAULT_MODE GST_STEREO_DEPTH_MODE_SPARSE
+#define DEFAULT_POST_MESSAGES TRUE
+
+enum {
+  PROP_0,
+  PROP_MODE,
+  PROP_MIN_DEPTH,
+  PROP_MAX_DEPTH,
+  PROP_OUTLIER_K,
+  PROP_MIN_DISPARITY,
+  PROP_NUM_DISPARITIES,
+  PROP_BLOCK_SIZE,
+  PROP_P1,
+  PROP_P2,
+  PROP_UNIQUENESS_RATIO,
+  PROP_SPECKLE_WINDOW_SIZE,
+  PROP_SPECKLE_RANGE,
+  PROP_SAMPLE_STEP,
+  PROP_POST_MESSAGES,
+};
+
+namespace {
+
+struct Settings {
+  GstStereoDepthMode mode = DEFAULT_MODE;
+  DenseParams dense; // dense.filter is the depth cleaning of both modes
+  bool post_messages = DEFAULT_POST_MESSAGES;
+};
+
+struct State {
+  std::mutex lock; // guards settings
+  Settings settings;
+  // streaming thread only
+  GstVideoInfo info;
+  bool info_set = false;
+};
+
+/* What one buffer gives: the points, their figures and (dense) the depth map. */
+struct Output {
+  std::vector<GstTreeStereoPoint> points;
+  GstTreeStereoDepthStats stats{};
+  GstBuffer *depth_map = nullptr; // owned until attached
+  cv::Rect box;
+};
+
+} // namespace
+
+struct GstStereoDepth {
+  GstBaseTransform parent;
+  State *state;
+};
+
+struct GstStereoDepthClass {
+  GstBaseTransformClass parent_class;
+};
+
+#define GST_TYPE_STEREO_DEPTH (gst_stereo_depth_get_type())
+#define GST_STEREO_DEPTH(obj) \
+  (G_TYPE_CHECK_INSTANCE_CAST((obj), GST_TYPE_STEREO_DEPTH, GstStereoDepth))
+G_DEFINE_TYPE(GstStereoDepth, gst_stereo_depth, GST_TYPE_BASE_TRANSFORM);
+GST_ELEMENT_REGISTER_DEFINE(stereodepth, "stereodepth", GST_RANK_NONE, GST_TYPE_STEREO_DEPTH);
+
+#define CAPS GST_VIDEO_CAPS_MAKE(TREESTEREO_VIDEO_FORMATS)
+static GstStaticPadTemplate sink_template =
+    GST_STATIC_PAD_TEMPLATE("sink", GST_PAD_SINK, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
+static GstStaticPadTemplate src_template =
+    GST_STATIC_PAD_TEMPLATE("src", GST_PAD_SRC, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
+
+static Settings snapshot(GstStereoDepth *self)
+{
+  std::lock_guard<std::mutex> g(self->state->lock);
+  return self->state->settings;
+}
+
+static void fill_stats(const DepthStats &s, GstTreeStereoDepthStats *out)
+{
+  out->n_points = guint(s.n_points);
+  out->n_valid = guint(s.n_valid);
+  out->dropped_disparity = guint(s.dropped_disparity);
+  out->dropped_range = guint(s.dropped_range);
+  out->dropped_outlier = guint(s.dropped_outlier);
+  out->median_z_mm = s.median_mm;
+  out->mad_z_mm = s.mad_mm;
+  out->p05_z_mm = s.p05_mm;
+  out->p95_z_mm = s.p95_mm;
+  out->accept_lo_mm = s.accept_lo_mm;
+  out->accept_hi_mm = s.accept_hi_mm;
+}
+
+static std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &pts)
+{
+  std::vector<GstTreeStereoPoint> out(pts.size());
+  for (std::size_t i = 0; i < pts.size(); i++)
+    out[i] = {pts[i].x, pts[i].y, pts[i].z, pts[i].match_index, pts[i].valid ? TRUE : FALSE};
+  return out;
+}
+
+static void sparse_depth(const GstTreeStereoMatchesMeta *mm, const StereoGeometry &g,
+                         const Settings &s, Output &out)
+{
+  std::vector<StereoMatch> matches(mm->n_matches);
+  for (guint i = 0; i < mm->n_matches; i++) {
+    const GstTreeStereoMatch &m = mm->matches[i];
+    matches[i] = {m.xl, m.yl, m.xr, m.yr, m.score};
+  }
+  const DepthResult r = triangulate_matches(matches, g, s.dense.filter);
+  out.points = to_gst_points(r.points);
+  fill_stats(r.stats, &out.stats);
+}
+
+/* The depth map as a GRAY16_LE buffer, rows of width * 2 bytes. */
+static GstBuffer *depth_map_buffer(const cv::Mat &depth)
+{
+  const gsize stride = gsize(depth.cols) * 2;
+  GstBuffer *buf = gst_buffer_new_allocate(nullptr, stride * gsize(depth.rows), nullptr);
+  GstMapInfo map;
+  if (!gst_buffer_map(buf, &map, GST_MAP_WRITE)) {
+    gst_buffer_unref(buf);
+    throw std::runtime_error("could not map a new depth map buffer");
+  }
+  for (int y = 0; y < depth.rows; y++) {
+    const std::uint16_t *src = depth.ptr<std::uint16_t>(y);
+    guint16 *dst = reinterpret_cast<guint16 *>(map.data + stride * gsize(y));
+    for (int x = 0; x < depth.cols; x++)
+      dst[x] = GUINT16_TO_LE(src[x]);
+  }
+  gst_buffer_unmap(buf, &map);
+  return buf;
+}
+
+static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g,
+                  const Settings &s, Output &out)
+{
+  State *st = self->state;
+  if (!st->info_set)
+    throw std::runtime_error("mode=dense: no caps negotiated before the first buffer");
+  if (treestereo::gst::n_views_of(&st->info) != 2)
+    throw std::runtime_error("mode=dense needs side-by-side stereo frames "
+                             "(multiview-mode=side-by-side, as stereorectify produces)");
+  cv::Rect box(cv::Point(0, 0), g.view_size);
+  const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
+  const GstTreeStereoVegetationView *lv = veg ? &veg->views[LEFT] : nullptr;
+  if (lv && !lv->present)
+    return; // segmentation found no canopy: nothing to match, an empty points meta
+  if (lv)
+    box = cv::Rect(lv->bbox_x, lv->bbox_y, lv->bbox_width, lv->bbox_height);
+  treestereo::gst::MappedSilhouette sil(lv); // no vegetation meta: no mask
+  treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
+  if (!frame.ok())
+    throw std::runtime_error("could not map the frame for dense matching");
+  const treestereo::gst::PixelLayout layout =
+      treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info));
+  const cv::Mat mat = frame.mat();
+  const cv::Mat left = treestereo::gst::gray_view(treestereo::gst::view_mat(mat, LEFT, 2), layout);
+  const cv::Mat right =
+      treestereo::gst::gray_view(treestereo::gst::view_mat(mat, RIGHT, 2), layout);
+  const DenseResult r = dense_depth(left, right, sil.get().mask, box, g, s.dense);
+  out.points = to_gst_points(r.points);
+  fill_stats(r.stats, &out.stats);
+  out.box = r.box;
+  if (!r.depth_mm.empty())
+    out.depth_map = depth_map_buffer(r.depth_mm);
+}
+
+static gboolean gst_stereo_depth_set_caps(GstBaseTransform *trans, GstCaps *incaps,
+                                          GstCaps *outcaps)
+{
+  GstStereoDepth *self = GST_STEREO_DEPTH(trans);
+  if (!gst_video_info_from_caps(&self->state->info, incaps)) {
+    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr),
+                      ("invalid caps %" GST_PTR_FORMAT, incaps));
+    return FALSE;
+  }
+  self->state->info_set = true;
+  return TRUE;
+}
+
+static void attach_and_post(GstStereoDepth *self, GstBuffer *buf, const Settings &s, Output &out)
+{
+  GstTreeStereoPointsMeta *pm = gst_buffer_add_tree_stereo_points_meta(
+      buf, out.points.empty() ? nullptr : out.points.data(), guint(out.points.size()),
+      &out.stats);
+  pm->dense = s.mode == GST_STEREO_DEPTH_MODE_DENSE;
+  if (out.depth_map) {
+    gst_tree_stereo_points_meta_set_depth_map(pm, out.depth_map, out.box.x, out.box.y,
+                                              guint(out.box.width), guint(out.box.height),
+                                              guint(out.box.width) * 2);
+    gst_clear_buffer(&out.depth_map);
+  }
+  GST_LOG_OBJECT(self, "%u points, %u valid, median %.1f mm", out.stats.n_points,
+                 out.stats.n_valid, out.stats.median_z_mm);
+  if (!s.post_messages)
+    return;
+  GstTreeStereoTimes times;
+  gst_tree_stereo_times_from_buffer(&times, buf, &GST_BASE_TRANSFORM(self)->segment);
+  treestereo::gst::post_element_message(
+      GST_ELEMENT(self), gst_tree_stereo_depth_message_structure(pm->dense, &pm->stats, &times));
+}
+
+static GstFlowReturn gst_stereo_depth_transform_ip(GstBaseTransform *trans, GstBuffer *buf)
+{
+  GstStereoDepth *self = GST_STEREO_DEPTH(trans);
+  const Settings s = snapshot(self);
+  const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
+  if (!gm) {
+    GST_ELEMENT_ERROR(self, STREAM, FAILED,
+                      ("No stereo geometry on the buffer: stereodepth needs the geometry meta "
+                       "of stereorectify upstream."),
+                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoGeometryMeta", buf));
+    return GST_FLOW_ERROR;
+  }
+  const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
+  if (s.mode == GST_STEREO_DEPTH_MODE_SPARSE && !mm) {
+    GST_ELEMENT_ERROR(self, STREAM, FAILED,
+                      ("No stereo matches on the buffer: stereodepth mode=sparse needs the "
+                       "matches meta of siftmatch upstream (or use mode=dense)."),
+                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoMatchesMeta", buf));
+    return GST_FLOW_ERROR;
+  }
+  Output out;
+  const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
+    const StereoGeometry g = treestereo::gst::geometry_from_meta(gm);
+    if (s.mode == GST_STEREO_DEPTH_MODE_SPARSE)
+      sparse_depth(mm, g, s, out);
+    else
+      dense(self, buf, g, s, out);
+    return true;
+  });
+  if (!ok) {
+    gst_clear_buffer(&out.depth_map);
+    return GST_FLOW_ERROR;
+  }
+  attach_and_post(self, buf, s, out);
+  return GST_FLOW_OK;
+}
+
+static void gst_stereo_depth_set_property(GObject *object, guint prop_id, const GValue *value,
+                                          GParamSpec *pspec)
+{
+  GstStereoDepth *self = GST_STEREO_DEPTH(object);
+  std::lock_guard<std::mutex> g(self->state->lock);
+  Settings &s = self->state->settings;
+  switch (prop_id) {
+  case PROP_MODE: s.mode = GstStereoDepthMode(g_value_get_enum(value)); break;
+  case PROP_MIN_DEPTH: s.dense.filter.min_depth_mm = g_value_get_double(value); break;
+  case PROP_MAX_DEPTH: s.dense.filter.max_depth_mm = g_value_get_double(value); break;
+  case PROP_OUTLIER_K: s.dense.filter.outlier_k = g_value_get_double(value); break;
+  case PROP_MIN_DISPARITY: s.dense.min_disparity = g_value_get_int(value); break;
+  case PROP_NUM_DISPARITIES: s.dense.num_disparities = g_value_get_int(value); break;
+  case PROP_BLOCK_SIZE: s.dense.block_size = g_value_get_int(value); break;
+  case PROP_P1: s.dense.p1 = g_value_get_int(value); break;
+  case PROP_P2: s.dense.p2 = g_value_get_int(value); break;
+  case PROP_UNIQUENESS_RATIO: s.dense.uniqueness_ratio = g_value_get_int(value); break;
+  case PROP_SPECKLE_WINDOW_SIZE: s.dense.speckle_window = g_value_get_int(value); break;
+  case PROP_SPECKLE_RANGE: s.dense.speckle_range = g_value_get_int(value); break;
+  case PROP_SAMPLE_STEP: s.dense.sample_step = g_value_get_int(value); break;
+  case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
+  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
+  }
+}
+
+static void gst_stereo_depth_get_property(GObject *object, guint prop_id, GValue *value,
+                                          GParamSpec *pspec)
+{
+  GstStereoDepth *self = GST_STEREO_DEPTH(object);
+  std::lock_guard<std::mutex> g(self->state->lock);
+  const Settings &s = self->state->settings;
+  switch (prop_id) {
+  case PROP_MODE: g_value_set_enum(value, s.mode); break;
+  case PROP_MIN_DEPTH: g_value_set_double(value, s.dense.filter.min_depth_mm); break;
+  case PROP_MAX_DEPTH: g_value_set_double(value, s.dense.filter.max_depth_mm); break;
+  case PROP_OUTLIER_K: g_value_set_double(value, s.dense.filter.outlier_k); break;
+  case PROP_MIN_DISPARITY: g_value_set_int(value, s.dense.min_disparity); break;
+  case PROP_NUM_DISPARITIES: g_value_set_int(value, s.dense.num_disparities); break;
+  case PROP_BLOCK_SIZE: g_value_set_int(value, s.dense.block_size); break;
+  case PROP_P1: g_value_set_int(value, s.dense.p1); break;
+  case PROP_P2: g_value_set_int(value, s.dense.p2); break;
+  case PROP_UNIQUENESS_RATIO: g_value_set_int(value, s.dense.uniqueness_ratio); break;
+  case PROP_SPECKLE_WINDOW_SIZE: g_value_set_int(value, s.dense.speckle_window); break;
+  case PROP_SPECKLE_RANGE: g_value_set_int(value, s.dense.speckle_range); break;
+  case PROP_SAMPLE_STEP: g_value_set_int(value, s.dense.sample_step); break;
+  case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
+  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
+  }
+}
+
+static void gst_stereo_depth_finalize(GObject *object)
+{
+  GstStereoDepth *self = GST_STEREO_DEPTH(object);
+  delete self->state;
+  self->state = nullptr;
+  G_OBJECT_CLASS(gst_stereo_depth_parent_class)->finalize(object);
+}
+
+#define RW_PLAYING \
+  GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)
+
+static void install_int(GObjectClass *klass, guint id, const char *name, const char *nick,
+                        const char *blurb, int min, int max, int def)
+{
+  g_object_class_install_property(klass, id,
+                                  g_param_spec_int(name, nick, blurb, min, max, def, RW_PLAYING));
+}
+
+static void gst_stereo_depth_class_init(GstStereoDepthClass *klass)
+{
+  GObjectClass *gobject_class = G_OBJECT_CLASS(klass);
+  GstElementClass *element_class = GST_ELEMENT_CLASS(klass);
+  GstBaseTransformClass *bt_class = GST_BASE_TRANSFORM_CLASS(klass);
+  const DenseParams d;
+
+  GST_DEBUG_CATEGORY_INIT(stereodepth_debug, "stereodepth", 0, "treestereo stereodepth");
+
+  gobject_class->set_property = gst_stereo_depth_set_property;
+  gobject_class->get_property = gst_stereo_depth_get_property;
+  gobject_class->finalize = gst_stereo_depth_finalize;
+
+  g_object_class_install_property(
+      gobject_class, PROP_MODE,
+      g_param_spec_enum("mode", "Mode",
+                        "sparse: triangulate siftmatch's matches; dense: StereoSGBM on the "
+                        "canopy's box with a GRAY16_LE depth map",
+                        GST_TYPE_STEREO_DEPTH_MODE, DEFAULT_MODE, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_MIN_DEPTH,
+      g_param_spec_double("min-depth", "Minimum depth",
+                          "Points nearer than this (mm) are dropped; dense: also bounds the "
+                          "disparity search",
+                          1.0, 1e6, d.filter.min_depth_mm, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_MAX_DEPTH,
+      g_param_spec_double("max-depth", "Maximum depth",
+                          "Points farther than this (mm) are dropped; must exceed min-depth",
+                          1.0, 1e6, d.filter.max_depth_mm, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_OUTLIER_K,
+      g_param_spec_double("outlier-k", "Outlier cut",
+                          "Drop points with |Z - median| > k * 1.4826 * MAD of the canopy's "
+                          "depths; 0 = off (3.5: Iglewicz and Hoaglin's cut)",
+                          0.0, 100.0, d.filter.outlier_k, RW_PLAYING));
+  install_int(gobject_class, PROP_MIN_DISPARITY, "min-disparity", "Minimum disparity",
+              "dense: smallest disparity searched (px) when num-disparities is set", -4096, 4096,
+              d.min_disparity);
+  install_int(gobject_class, PROP_NUM_DISPARITIES, "num-disparities", "Number of disparities",
+              "dense: disparities searched, a multiple of 16; 0 = the smallest window that "
+              "covers [min-depth, max-depth]",
+              0, 4096, d.num_disparities);
+  install_int(gobject_class, PROP_BLOCK_SIZE, "block-size", "Block size",
+              "dense: SGBM's matched block size (odd, px)", 1, 51, d.block_size);
+  install_int(gobject_class, PROP_P1, "p1", "P1",
+              "dense: SGBM's penalty of a disparity change by 1; 0 = 8 * block-size^2", 0,
+              G_MAXINT, d.p1);
+  install_int(gobject_class, PROP_P2, "p2", "P2",
+              "dense: SGBM's penalty of larger disparity changes (> p1); 0 = 32 * block-size^2",
+              0, G_MAXINT, d.p2);
+  install_int(gobject_class, PROP_UNIQUENESS_RATIO, "uniqueness-ratio", "Uniqueness ratio",
+              "dense: margin (%) by which the best cost must beat the second best", 0, 100,
+              d.uniqueness_ratio);
+  install_int(gobject_class, PROP_SPECKLE_WINDOW_SIZE, "speckle-window-size",
+              "Speckle window size",
+              "dense: largest disparity blob (px) removed as a speckle; 0 = no speckle filter",
+              0, 100000, d.speckle_window);
+  install_int(gobject_class, PROP_SPECKLE_RANGE, "speckle-range", "Speckle range",
+              "dense: largest disparity variation (px) within a connected component", 0, 1000,
+              d.speckle_range);
+  install_int(gobject_class, PROP_SAMPLE_STEP, "sample-step", "Sample step",
+              "dense: a 3D point from every n-th canopy pixel in x and in y", 1, 1024,
+              d.sample_step);
+  g_object_class_install_property(
+      gobject_class, PROP_POST_MESSAGES,
+      g_param_spec_boolean("post-messages", "Post messages",
+                           "Post a 'stereodepth' element message per buffer",
+                           DEFAULT_POST_MESSAGES, RW_PLAYING));
+
+  gst_element_class_add_static_pad_template(element_class, &sink_template);
+  gst_element_class_add_static_pad_template(element_class, &src_template);
+  gst_element_class_set_static_metadata(
+      element_class, "Stereo depth", "Filter/Analyzer/Video",
+      "3D points (mm, rectified-left frame) from stereo matches or dense SGBM, cleaned by a "
+      "depth range and a median/MAD outlier cut",
+      "treestereo developers");
+  gst_type_mark_as_plugin_api(GST_TYPE_STEREO_DEPTH_MODE, GstPluginAPIFlags(0));
+
+  bt_class->set_caps = gst_stereo_depth_set_caps;
+  bt_class->transform_ip = gst_stereo_depth_transform_ip;
+}
+
+static void gst_stereo_depth_init(GstStereoDepth *self)
+{
+  self->state = new State();
+  gst_base_transform_set_in_place(GST_BASE_TRANSFORM(self), TRUE);
+  gst_base_transform_set_passthrough(GST_BASE_TRANSFORM(self), FALSE);
+}
