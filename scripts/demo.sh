@@ -1,9 +1,16 @@
 #!/usr/bin/env bash
 # The README's main command: installs what is missing, configures, builds, and runs the main job
-# on the embedded synthetic orchard (no camera, no files needed).
+# (treestereo-measure) on the embedded synthetic orchard - no camera, no files needed. Prints a
+# line of measurements per stereo frame and writes out/demo.jsonl (one JSON object per frame)
+# and out/demo.mp4 (the annotated side-by-side video). Extra arguments go to
+# treestereo-measure (see build/tools/treestereo-measure --help).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/deps.sh
-bash scripts/build.sh
+bash scripts/build.sh >/dev/null
 build=${TREESTEREO_BUILD_DIR:-build}
-echo "treestereo: built in $build"
+export GST_PLUGIN_PATH_1_0="$PWD/$build/gst/elements${GST_PLUGIN_PATH_1_0:+:$GST_PLUGIN_PATH_1_0}"
+mkdir -p out
+"$build/tools/treestereo-measure" --synthetic --frames 30 \
+  --json out/demo.jsonl --record out/demo.mp4 "$@"
+echo "treestereo: measurements in out/demo.jsonl, annotated video in out/demo.mp4"

@@ -177,6 +177,49 @@ Silhouette silhouette_from_view(const GstTreeStereoVegetationView *v, GstMapInfo
   return s;
 }
 
+static GstBufferPool *configured_pool(GstBufferPool *pool, GstCaps *caps, guint size, guint min,
+                                      guint max)
+{
+  GstStructure *config = gst_buffer_pool_get_config(pool);
+  gst_buffer_pool_config_set_params(config, caps, size, min, max);
+  if (gst_buffer_pool_set_config(pool, config))
+    return pool;
+  gst_object_unref(pool);
+  return nullptr;
+}
+
+bool decide_video_allocation(GstElement *element, GstQuery *query)
+{
+  ensure_debug_category();
+  GstCaps *caps;
+  gst_query_parse_allocation(query, &caps, nullptr);
+  GstVideoInfo info;
+  if (!caps || !gst_video_info_from_caps(&info, caps))
+    return false;
+
+  GstBufferPool *pool = nullptr;
+  guint size = 0, min = 0, max = 0;
+  const bool have = gst_query_get_n_allocation_pools(query) > 0;
+  if (have)
+    gst_query_parse_nth_allocation_pool(query, 0, &pool, &size, &min, &max);
+  size = MAX(size, guint(GST_VIDEO_INFO_SIZE(&info)));
+  min = MAX(min, 2u);
+  if (pool)
+    pool = configured_pool(pool, caps, size, min, max);
+  if (!pool) /* none offered, or downstream's refused our config */
+    pool = configured_pool(gst_video_buffer_pool_new(), caps, size, min, max);
+  if (!pool) {
+    GST_ERROR_OBJECT(element, "could not configure a buffer pool for %" GST_PTR_FORMAT, caps);
+    return false;
+  }
+  if (have)
+    gst_query_set_nth_allocation_pool(query, 0, pool, size, min, max);
+  else
+    gst_query_add_allocation_pool(query, pool, size, min, max);
+  gst_object_unref(pool);
+  return true;
+}
+
 void post_element_message(GstElement *element, GstStructure *s)
 {
   gst_element_post_message(element, gst_message_new_element(GST_OBJECT(element), s));

@@ -63,6 +63,10 @@ void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *view);
 /* Vegetation view of the meta -> silhouette; the mask is wrapped (valid while @mask_map is). */
 Silhouette silhouette_from_view(const GstTreeStereoVegetationView *view, GstMapInfo *mask_map);
 
+/* decide_allocation for an element that produces whole video frames of the query's caps: keeps
+ * downstream's pool when it takes our config, else a GstVideoBufferPool, sized for a frame. */
+bool decide_video_allocation(GstElement *element, GstQuery *query);
+
 /* Posts an element message built by the meta library (call with no lock held). */
 void post_element_message(GstElement *element, GstStructure *s);
 

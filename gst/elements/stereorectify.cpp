@@ -297,44 +297,7 @@ static gboolean gst_stereo_rectify_negotiated_src_caps(GstAggregator *agg, GstCa
 
 static gboolean gst_stereo_rectify_decide_allocation(GstAggregator *agg, GstQuery *query)
 {
-  GstStereoRectify *self = GST_STEREO_RECTIFY(agg);
-  GstCaps *caps;
-  gst_query_parse_allocation(query, &caps, nullptr);
-  if (!caps)
-    return FALSE;
-  GstVideoInfo info;
-  if (!gst_video_info_from_caps(&info, caps))
-    return FALSE;
-
-  GstBufferPool *pool = nullptr;
-  guint size = guint(GST_VIDEO_INFO_SIZE(&info)), min = 2, max = 0;
-  if (gst_query_get_n_allocation_pools(query) > 0)
-    gst_query_parse_nth_allocation_pool(query, 0, &pool, &size, &min, &max);
-  if (!pool)
-    pool = gst_video_buffer_pool_new();
-  size = MAX(size, guint(GST_VIDEO_INFO_SIZE(&info)));
-  min = MAX(min, 2u);
-
-  GstStructure *config = gst_buffer_pool_get_config(pool);
-  gst_buffer_pool_config_set_params(config, caps, size, min, max);
-  if (!gst_buffer_pool_set_config(pool, config)) {
-    /* a downstream pool that refuses our config: use our own */
-    gst_object_unref(pool);
-    pool = gst_video_buffer_pool_new();
-    config = gst_buffer_pool_get_config(pool);
-    gst_buffer_pool_config_set_params(config, caps, size, min, max);
-    if (!gst_buffer_pool_set_config(pool, config)) {
-      gst_object_unref(pool);
-      GST_ERROR_OBJECT(self, "could not configure a buffer pool");
-      return FALSE;
-    }
-  }
-  if (gst_query_get_n_allocation_pools(query) > 0)
-    gst_query_set_nth_allocation_pool(query, 0, pool, size, min, max);
-  else
-    gst_query_add_allocation_pool(query, pool, size, min, max);
-  gst_object_unref(pool);
-  return TRUE;
+  return treestereo::gst::decide_video_allocation(GST_ELEMENT(agg), query);
 }
 
 static GstClockTime running_time_of(GstAggregatorPad *pad, GstBuffer *buf)
@@ -384,6 +347,21 @@ static void advance_position(GstAggregator *agg, GstClockTime rt, GstClockTime d
     seg->position = rt + (GST_CLOCK_TIME_IS_VALID(duration) ? duration : 0);
 }
 
+/* Metas that do not depend on the pixels (no tags: e.g. treetestsrc's ground truth) travel
+ * from the left frame to the pair. */
+static void copy_untagged_metas(GstBuffer *in, GstBuffer *out)
+{
+  gpointer state = nullptr;
+  GstMeta *meta;
+  GstMetaTransformCopy copy = {FALSE, 0, G_MAXSIZE};
+  while ((meta = gst_buffer_iterate_meta(in, &state))) {
+    const gchar *const *tags = gst_meta_api_type_get_tags(meta->info->api);
+    if ((tags && tags[0]) || !meta->info->transform_func)
+      continue;
+    meta->info->transform_func(out, meta, in, _gst_meta_transform_copy, &copy);
+  }
+}
+
 static GstFlowReturn compose_pair(GstStereoRectify *self, GstBuffer *in[2], GstClockTime rt[2])
 {
   GstAggregator *agg = GST_AGGREGATOR(self);
@@ -424,6 +402,7 @@ static GstFlowReturn compose_pair(GstStereoRectify *self, GstBuffer *in[2], GstC
     return GST_FLOW_ERROR;
   }
 
+  copy_untagged_metas(in[LEFT], out);
   GstTreeStereoGeometryMeta *meta = gst_buffer_add_tree_stereo_geometry_meta(out);
   treestereo::gst::geometry_to_meta(st->rect.geometry, meta);
   meta->side_by_side = TRUE;

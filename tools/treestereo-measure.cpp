@@ -1,0 +1,631 @@
+// treestereo-measure: the measuring job. Builds the whole pipeline
+//   sources -> stereorectify -> exgsegment -> siftmatch -> stereodepth -> treemetrics
+//   [-> treeoverlay -> x264enc -> mp4mux -> file]
+// from its inputs (the synthetic orchard, image sequences, video files or two Aravis cameras),
+// and writes one JSON object (and/or CSV row) per stereo frame, a one-line summary per frame
+// on the terminal, and optionally an annotated video. Ctrl-C ends the stream cleanly (EOS), so
+// a recording is always playable.
+#include "treestereo/calibration.hpp"
+#include "treestereo/json.hpp"
+#include "treestereo/scene.hpp"
+
+#include <gst/gst.h>
+#include <gst/treestereo/treestereo-meta.h>
+#include <glib-unix.h>
+#include <glib/gstdio.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <unistd.h>
+
+using namespace treestereo;
+
+namespace {
+
+struct Options {
+  // inputs
+  gboolean synthetic = FALSE;
+  gchar *left = nullptr, *right = nullptr;
+  gchar *camera_left = nullptr, *camera_right = nullptr;
+  gchar *camera_caps = nullptr;
+  gchar *calibration = nullptr;
+  gint frames = -1;
+  gchar *size = nullptr;
+  gdouble fps = 0;
+  gint64 seed = 1;
+  gdouble distance = 2.0, speed = 0.5, light = 1.0;
+  // analysis
+  gchar *index = nullptr, *method = nullptr, *mode = nullptr;
+  gdouble scale = -1, smoothing = 0, min_depth = 500, max_depth = 10000;
+  gint bands = 4;
+  gboolean no_rectify = FALSE;
+  // outputs
+  gchar *json = nullptr, *csv = nullptr, *record = nullptr;
+  gboolean points = FALSE, matches = FALSE, quiet = FALSE;
+  gint bitrate = 4000;
+};
+
+const gchar *kSummary =
+    "Measures fruit trees with two cameras: distance to the canopy, its height, width,\n"
+    "thickness, area, perimeter and a per-height-band profile, one result per stereo frame.\n"
+    "\n"
+    "Inputs (one of):\n"
+    "  --synthetic (the default with no inputs): the built-in orchard, a sprayer driving by\n"
+    "  --left PATTERN --right PATTERN: image sequences (left_%04d.jpg) or video files\n"
+    "  --camera-left NAME --camera-right NAME: two Aravis cameras (name, serial or IP)\n"
+    "Files and cameras need --calibration (OpenCV YAML/XML, or 'left.yaml;right.yaml' ROS).\n"
+    "\n"
+    "Exit status: 0 when the stream ended normally (or by Ctrl-C), 1 on a pipeline error,\n"
+    "2 on a usage error.";
+
+[[noreturn]] void usage_error(const std::string &msg)
+{
+  std::fprintf(stderr, "treestereo-measure: %s (see --help)\n", msg.c_str());
+  std::exit(2);
+}
+
+bool parse_size(const char *s, int &w, int &h)
+{
+  return s && std::sscanf(s, "%dx%d", &w, &h) == 2 && w > 0 && h > 0;
+}
+
+// gst-launch quoting for a property value.
+std::string quoted(const std::string &v)
+{
+  std::string o = "\"";
+  for (char c : v) {
+    if (c == '"' || c == '\\')
+      o += '\\';
+    o += c;
+  }
+  return o + "\"";
+}
+
+bool has_suffix(const std::string &s, const char *suf)
+{
+  return g_str_has_suffix(s.c_str(), suf);
+}
+
+bool is_pattern(const std::string &s)
+{
+  return s.find('%') != std::string::npos;
+}
+
+// Number of files of a printf pattern from index 0.
+int count_sequence(const std::string &pattern)
+{
+  int n = 0;
+  for (;; n++) {
+    gchar *name = g_strdup_printf(pattern.c_str(), n);
+    const bool exists = g_file_test(name, G_FILE_TEST_EXISTS);
+    g_free(name);
+    if (!exists)
+      return n;
+  }
+}
+
+std::string file_source(const std::string &path, double fps, int frames)
+{
+  std::ostringstream s;
+  if (is_pattern(path)) {
+    const char *caps = (has_suffix(path, ".png") || has_suffix(path, ".PNG")) ? "image/png"
+                                                                               : "image/jpeg";
+    const int rate = fps > 0 ? int(fps + 0.5) : 7;
+    s << "multifilesrc location=" << quoted(path) << " index=0"
+      << (frames > 0 ? " stop-index=" + std::to_string(frames - 1) : std::string())
+      << " caps=\"" << caps << ",framerate=(fraction)" << rate << "/1\" ! decodebin";
+  } else {
+    s << "filesrc location=" << quoted(path) << " ! decodebin";
+  }
+  s << " ! videoconvert ! video/x-raw,format=RGB";
+  return s.str();
+}
+
+std::string camera_source(const std::string &name, const Options &o)
+{
+  std::ostringstream s;
+  const std::string caps = o.camera_caps ? o.camera_caps : "video/x-raw,format=RGB";
+  s << "aravissrc camera-name=" << quoted(name) << " do-timestamp=true";
+  if (o.frames > 0)
+    s << " num-buffers=" << o.frames;
+  s << " ! " << caps;
+  if (caps.rfind("video/x-bayer", 0) == 0)
+    s << " ! bayer2rgb";
+  s << " ! videoconvert ! video/x-raw,format=RGB";
+  return s.str();
+}
+
+struct Job {
+  Options o;
+  std::string calibration; // path used by stereorectify
+  std::string temp_calibration;
+  int total_frames = -1; // when known
+  GstElement *pipeline = nullptr;
+  GMainLoop *loop = nullptr;
+  std::unique_ptr<std::ofstream> json_file, csv_file;
+  std::ostream *json = nullptr;
+  std::ostream *csv = nullptr;
+  guint64 frames = 0, present = 0;
+  bool error = false, interrupted = false;
+  std::chrono::steady_clock::time_point start;
+};
+
+void write_metrics_json(JsonWriter &w, const GstTreeStereoMetrics &m)
+{
+  w.field("tree_present", bool(m.tree_present));
+  if (!m.tree_present)
+    return;
+  w.field("distance_m", m.distance_m)
+      .field("height_m", m.height_m)
+      .field("width_m", m.width_m)
+      .field("thickness_m", m.thickness_m)
+      .field("area_m2", m.area_m2)
+      .field("perimeter_m", m.perimeter_m)
+      .field("complexity", m.complexity)
+      .key("centroid_m")
+      .array({m.centroid_m[0], m.centroid_m[1], m.centroid_m[2]})
+      .key("clipped")
+      .begin_array();
+  if (m.clipped & GST_TREE_STEREO_CLIPPED_TOP)
+    w.value("top");
+  if (m.clipped & GST_TREE_STEREO_CLIPPED_BOTTOM)
+    w.value("bottom");
+  if (m.clipped & GST_TREE_STEREO_CLIPPED_LEFT)
+    w.value("left");
+  if (m.clipped & GST_TREE_STEREO_CLIPPED_RIGHT)
+    w.value("right");
+  w.end_array().key("bands").begin_array();
+  for (guint i = 0; i < m.n_bands; i++) {
+    const GstTreeStereoBand &b = m.bands[i];
+    w.begin_object().field("present", bool(b.present));
+    if (b.present)
+      w.field("top_m", b.top_m)
+          .field("bottom_m", b.bottom_m)
+          .field("left_m", b.left_m)
+          .field("right_m", b.right_m)
+          .field("width_m", b.width_m)
+          .field("depth_m", b.depth_m);
+    w.end_object();
+  }
+  w.end_array().field("n_points", m.n_points).field("n_matches", m.n_matches);
+}
+
+void write_json(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
+{
+  JsonWriter w(*job.json);
+  w.begin_object().field("frame", static_cast<unsigned long long>(job.frames));
+  if (GST_BUFFER_PTS_IS_VALID(buf))
+    w.field("pts_ns", static_cast<unsigned long long>(GST_BUFFER_PTS(buf)));
+  else
+    w.key("pts_ns").null();
+  if (mm) {
+    write_metrics_json(w, mm->metrics);
+    if (job.o.smoothing > 0 && mm->smoothed.tree_present) {
+      w.key("smoothed").begin_object();
+      write_metrics_json(w, mm->smoothed);
+      w.end_object();
+    }
+  } else {
+    w.field("tree_present", false);
+  }
+  if (job.o.points) {
+    w.key("points_mm").begin_array();
+    if (const GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(buf))
+      for (guint i = 0; i < pm->n_points; i++)
+        if (pm->points[i].valid)
+          w.array({pm->points[i].x, pm->points[i].y, pm->points[i].z});
+    w.end_array();
+  }
+  if (job.o.matches) {
+    w.key("matches").begin_array();
+    if (const GstTreeStereoMatchesMeta *ma = gst_buffer_get_tree_stereo_matches_meta(buf))
+      for (guint i = 0; i < ma->n_matches; i++)
+        w.array({ma->matches[i].xl, ma->matches[i].yl, ma->matches[i].xr, ma->matches[i].yr});
+    w.end_array();
+  }
+  if (const GstTreeStereoTruthMeta *t = gst_buffer_get_tree_stereo_truth_meta(buf)) {
+    w.key("truth")
+        .begin_object()
+        .field("distance_m", t->truth.distance_m)
+        .field("height_m", t->truth.height_m)
+        .field("width_m", t->truth.width_m)
+        .field("thickness_m", t->truth.thickness_m)
+        .end_object();
+  }
+  w.end_object();
+  *job.json << "\n";
+  job.json->flush();
+}
+
+const char *kCsvHeader = "frame,pts_ns,tree_present,distance_m,height_m,width_m,thickness_m,"
+                         "area_m2,perimeter_m,complexity,centroid_x_m,centroid_y_m,centroid_z_m,"
+                         "clipped,n_points,n_matches";
+
+void write_csv(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
+{
+  std::ostream &c = *job.csv;
+  char line[512];
+  const GstClockTime pts = GST_BUFFER_PTS(buf);
+  if (!mm || !mm->metrics.tree_present) {
+    std::snprintf(line, sizeof line, "%" G_GUINT64_FORMAT ",%s,false,,,,,,,,,,,,,\n", job.frames,
+                  GST_CLOCK_TIME_IS_VALID(pts) ? std::to_string(pts).c_str() : "");
+  } else {
+    const GstTreeStereoMetrics &m = mm->metrics;
+    std::snprintf(line, sizeof line,
+                  "%" G_GUINT64_FORMAT ",%s,true,%.5f,%.5f,%.5f,%.5f,%.6f,%.5f,%.4f,%.5f,%.5f,"
+                  "%.5f,%u,%u,%u\n",
+                  job.frames, GST_CLOCK_TIME_IS_VALID(pts) ? std::to_string(pts).c_str() : "",
+                  m.distance_m, m.height_m, m.width_m, m.thickness_m, m.area_m2, m.perimeter_m,
+                  m.complexity, m.centroid_m[0], m.centroid_m[1], m.centroid_m[2], m.clipped,
+                  m.n_points, m.n_matches);
+  }
+  c << line;
+  c.flush();
+}
+
+void print_progress(Job &job, const GstTreeStereoMetricsMeta *mm)
+{
+  const double elapsed =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - job.start).count();
+  const bool tty = isatty(STDERR_FILENO);
+  if (job.total_frames > 0 && tty) {
+    const int width = 30;
+    const double frac = std::min(1.0, double(job.frames) / job.total_frames);
+    const int fill = int(frac * width);
+    const double eta = job.frames > 0 ? elapsed / job.frames * (job.total_frames - job.frames) : 0;
+    std::fprintf(stderr, "\r[%.*s%*s] %" G_GUINT64_FORMAT "/%d  ETA %.0f s ", fill,
+                 "##############################", width - fill, "", job.frames,
+                 job.total_frames, eta);
+    std::fflush(stderr);
+  }
+  if (job.o.quiet || job.json == &std::cout)
+    return;
+  if (tty && job.total_frames > 0)
+    std::fprintf(stderr, "\r%*s\r", 60, "");
+  if (mm && mm->metrics.tree_present) {
+    const GstTreeStereoMetrics &m = mm->metrics;
+    std::printf("frame %4" G_GUINT64_FORMAT "  distance %.3f m  height %s%.3f m  width %s%.3f m  "
+                "thickness %.3f m  area %.3f m2  points %u\n",
+                job.frames, m.distance_m,
+                (m.clipped & (GST_TREE_STEREO_CLIPPED_TOP | GST_TREE_STEREO_CLIPPED_BOTTOM))
+                    ? ">="
+                    : "",
+                m.height_m,
+                (m.clipped & (GST_TREE_STEREO_CLIPPED_LEFT | GST_TREE_STEREO_CLIPPED_RIGHT))
+                    ? ">="
+                    : "",
+                m.width_m, m.thickness_m, m.area_m2, m.n_points);
+  } else {
+    std::printf("frame %4" G_GUINT64_FORMAT "  no tree\n", job.frames);
+  }
+  std::fflush(stdout);
+}
+
+GstPadProbeReturn on_result(GstPad *, GstPadProbeInfo *info, gpointer data)
+{
+  Job &job = *static_cast<Job *>(data);
+  GstBuffer *buf = GST_PAD_PROBE_INFO_BUFFER(info);
+  const GstTreeStereoMetricsMeta *mm = gst_buffer_get_tree_stereo_metrics_meta(buf);
+  if (job.json)
+    write_json(job, buf, mm);
+  if (job.csv)
+    write_csv(job, buf, mm);
+  job.frames++;
+  if (mm && mm->metrics.tree_present)
+    job.present++;
+  print_progress(job, mm);
+  return GST_PAD_PROBE_OK;
+}
+
+gboolean on_bus(GstBus *, GstMessage *msg, gpointer data)
+{
+  Job &job = *static_cast<Job *>(data);
+  switch (GST_MESSAGE_TYPE(msg)) {
+  case GST_MESSAGE_ERROR: {
+    GError *err = nullptr;
+    gchar *dbg = nullptr;
+    gst_message_parse_error(msg, &err, &dbg);
+    std::fprintf(stderr, "\ntreestereo-measure: error from %s: %s\n", GST_OBJECT_NAME(msg->src),
+                 err->message);
+    if (dbg)
+      std::fprintf(stderr, "  (%s)\n", dbg);
+    g_error_free(err);
+    g_free(dbg);
+    job.error = true;
+    g_main_loop_quit(job.loop);
+    break;
+  }
+  case GST_MESSAGE_WARNING: {
+    GError *err = nullptr;
+    gst_message_parse_warning(msg, &err, nullptr);
+    std::fprintf(stderr, "\ntreestereo-measure: warning from %s: %s\n",
+                 GST_OBJECT_NAME(msg->src), err->message);
+    g_error_free(err);
+    break;
+  }
+  case GST_MESSAGE_EOS:
+    g_main_loop_quit(job.loop);
+    break;
+  default:
+    break;
+  }
+  return TRUE;
+}
+
+gboolean on_sigint(gpointer data)
+{
+  Job &job = *static_cast<Job *>(data);
+  if (job.interrupted) {
+    std::fprintf(stderr, "\ntreestereo-measure: interrupted twice, stopping without EOS\n");
+    g_main_loop_quit(job.loop);
+    return G_SOURCE_REMOVE;
+  }
+  job.interrupted = true;
+  std::fprintf(stderr, "\ntreestereo-measure: interrupted, finishing the files (Ctrl-C again "
+                       "to stop at once)\n");
+  gst_element_send_event(job.pipeline, gst_event_new_eos());
+  return G_SOURCE_CONTINUE;
+}
+
+std::string build_description(Job &job)
+{
+  const Options &o = job.o;
+  std::ostringstream d;
+  std::string left, right;
+  int w = 1296, h = 972;
+  if (o.size && !parse_size(o.size, w, h))
+    usage_error(std::string("--size expects WxH, got '") + o.size + "'");
+
+  if (o.synthetic) {
+    const int frames = o.frames > 0 ? o.frames : 30;
+    const int fps = o.fps > 0 ? int(o.fps + 0.5) : 7;
+    job.total_frames = frames;
+    for (int v = 0; v < 2; v++) {
+      std::ostringstream s;
+      s << "treetestsrc view=" << (v == 0 ? "left" : "right") << " seed=" << o.seed
+        << " distance=" << o.distance << " speed=" << o.speed << " light=" << o.light
+        << " num-buffers=" << frames << " ! video/x-raw,format=RGB,width=" << w
+        << ",height=" << h << ",framerate=" << fps << "/1";
+      (v == 0 ? left : right) = s.str();
+    }
+  } else if (o.camera_left || o.camera_right) {
+    if (!o.camera_left || !o.camera_right)
+      usage_error("--camera-left and --camera-right go together");
+    left = camera_source(o.camera_left, o);
+    right = camera_source(o.camera_right, o);
+    job.total_frames = o.frames;
+  } else {
+    if (!o.left || !o.right)
+      usage_error("--left and --right go together");
+    left = file_source(o.left, o.fps, o.frames);
+    right = file_source(o.right, o.fps, o.frames);
+    if (is_pattern(o.left)) {
+      job.total_frames = count_sequence(o.left);
+      if (job.total_frames == 0)
+        usage_error(std::string("no file matches ") + o.left + " (index 0)");
+      if (o.frames > 0)
+        job.total_frames = std::min(job.total_frames, o.frames);
+    } else if (!g_file_test(o.left, G_FILE_TEST_EXISTS)) {
+      usage_error(std::string("no such file: ") + o.left);
+    }
+  }
+
+  d << "stereorectify name=rect calibration=" << quoted(job.calibration)
+    << (o.no_rectify ? " rectify=false" : "");
+  d << " ! exgsegment name=seg" << (o.index ? std::string(" index=") + o.index : "");
+  d << " ! siftmatch name=match" << (o.method ? std::string(" method=") + o.method : "")
+    << (o.scale > 0 ? " scale=" + std::to_string(o.scale) : "") << " min-depth=" << o.min_depth
+    << " max-depth=" << o.max_depth;
+  d << " ! stereodepth name=depth" << (o.mode ? std::string(" mode=") + o.mode : "")
+    << " min-depth=" << o.min_depth << " max-depth=" << o.max_depth;
+  d << " ! treemetrics name=metrics bands=" << o.bands << " smoothing=" << o.smoothing;
+  if (o.record) {
+    d << " ! tee name=t t. ! queue ! fakesink name=results sync=false async=false"
+      << " t. ! queue ! treeoverlay ! videoconvert ! x264enc bitrate=" << o.bitrate
+      << " speed-preset=veryfast ! h264parse ! mp4mux ! filesink location="
+      << quoted(o.record);
+  } else {
+    d << " ! fakesink name=results sync=false";
+  }
+  d << "  " << left << " ! rect.left  " << right << " ! rect.right";
+  return d.str();
+}
+
+int run(int argc, char **argv)
+{
+  Job job;
+  Options &o = job.o;
+  GOptionEntry entries[] = {
+      {"synthetic", 0, 0, G_OPTION_ARG_NONE, &o.synthetic,
+       "The built-in synthetic orchard (default with no inputs)", nullptr},
+      {"left", 0, 0, G_OPTION_ARG_FILENAME, &o.left,
+       "Left images (printf pattern, e.g. left_%04d.jpg) or a video file", "PATTERN"},
+      {"right", 0, 0, G_OPTION_ARG_FILENAME, &o.right, "Right images or video", "PATTERN"},
+      {"camera-left", 0, 0, G_OPTION_ARG_STRING, &o.camera_left, "Left Aravis camera", "NAME"},
+      {"camera-right", 0, 0, G_OPTION_ARG_STRING, &o.camera_right, "Right Aravis camera",
+       "NAME"},
+      {"camera-caps", 0, 0, G_OPTION_ARG_STRING, &o.camera_caps,
+       "Caps for the cameras (default video/x-raw,format=RGB; video/x-bayer,... adds "
+       "bayer2rgb)",
+       "CAPS"},
+      {"calibration", 'c', 0, G_OPTION_ARG_FILENAME, &o.calibration,
+       "Stereo calibration (OpenCV YAML/XML or 'left.yaml;right.yaml')", "FILE"},
+      {"no-rectify", 0, 0, G_OPTION_ARG_NONE, &o.no_rectify,
+       "The input is already rectified (geometry still from --calibration)", nullptr},
+      {"frames", 'n', 0, G_OPTION_ARG_INT, &o.frames,
+       "Frames to process (synthetic default 30; all for files)", "N"},
+      {"size", 0, 0, G_OPTION_ARG_STRING, &o.size, "Synthetic frame size (1296x972)", "WxH"},
+      {"fps", 0, 0, G_OPTION_ARG_DOUBLE, &o.fps, "Frame rate of image sequences/synthetic (7)",
+       "FPS"},
+      {"seed", 0, 0, G_OPTION_ARG_INT64, &o.seed, "Synthetic scene seed (1)", "N"},
+      {"distance", 0, 0, G_OPTION_ARG_DOUBLE, &o.distance, "Synthetic trunk distance, m (2.0)",
+       "M"},
+      {"speed", 0, 0, G_OPTION_ARG_DOUBLE, &o.speed, "Synthetic sprayer speed, m/s (0.5)", "M/S"},
+      {"light", 0, 0, G_OPTION_ARG_DOUBLE, &o.light, "Synthetic light level (1.0)", "L"},
+      {"index", 0, 0, G_OPTION_ARG_STRING, &o.index, "exgsegment index", "NAME"},
+      {"method", 0, 0, G_OPTION_ARG_STRING, &o.method, "siftmatch method", "NAME"},
+      {"scale", 0, 0, G_OPTION_ARG_DOUBLE, &o.scale, "siftmatch detection scale", "S"},
+      {"mode", 0, 0, G_OPTION_ARG_STRING, &o.mode, "stereodepth mode (sparse|dense)", "MODE"},
+      {"min-depth", 0, 0, G_OPTION_ARG_DOUBLE, &o.min_depth, "Nearest canopy depth, mm (500)",
+       "MM"},
+      {"max-depth", 0, 0, G_OPTION_ARG_DOUBLE, &o.max_depth, "Farthest canopy depth, mm (10000)",
+       "MM"},
+      {"bands", 0, 0, G_OPTION_ARG_INT, &o.bands, "Height bands of the profile (4)", "N"},
+      {"smoothing", 0, 0, G_OPTION_ARG_DOUBLE, &o.smoothing,
+       "Temporal smoothing 0..1 (0 = off)", "A"},
+      {"json", 'j', 0, G_OPTION_ARG_FILENAME, &o.json, "JSON lines, one per frame ('-' = stdout)",
+       "FILE"},
+      {"csv", 0, 0, G_OPTION_ARG_FILENAME, &o.csv, "CSV, one row per frame", "FILE"},
+      {"points", 0, 0, G_OPTION_ARG_NONE, &o.points, "Add the 3D points to the JSON", nullptr},
+      {"matches", 0, 0, G_OPTION_ARG_NONE, &o.matches, "Add the matches to the JSON", nullptr},
+      {"record", 'r', 0, G_OPTION_ARG_FILENAME, &o.record, "Annotated video (MP4, H.264)",
+       "FILE"},
+      {"bitrate", 0, 0, G_OPTION_ARG_INT, &o.bitrate, "Recording bitrate, kbit/s (4000)", "KBPS"},
+      {"quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "No per-frame summary", nullptr},
+      {nullptr}};
+  GOptionContext *ctx = g_option_context_new("- measure fruit trees with two cameras");
+  g_option_context_set_summary(ctx, kSummary);
+  g_option_context_add_main_entries(ctx, entries, nullptr);
+  g_option_context_add_group(ctx, gst_init_get_option_group());
+  GError *err = nullptr;
+  if (!g_option_context_parse(ctx, &argc, &argv, &err)) {
+    std::string m = err->message;
+    g_error_free(err);
+    g_option_context_free(ctx);
+    usage_error(m);
+  }
+  g_option_context_free(ctx);
+  if (argc > 1)
+    usage_error(std::string("unexpected argument '") + argv[1] + "'");
+
+  const bool files = o.left || o.right, cameras = o.camera_left || o.camera_right;
+  if (!files && !cameras)
+    o.synthetic = TRUE;
+  if (int(o.synthetic) + int(files) + int(cameras) > 1)
+    usage_error("choose one input: --synthetic, --left/--right or --camera-left/--camera-right");
+  if (o.bands < 1 || o.bands > 64)
+    usage_error("--bands must be 1..64");
+  if (o.smoothing < 0 || o.smoothing >= 1)
+    usage_error("--smoothing must be in [0, 1)");
+
+  if (o.synthetic) {
+    // the rig's true calibration, written before the pipeline starts
+    SceneParams p;
+    int w = 1296, h = 972;
+    if (o.size && !parse_size(o.size, w, h))
+      usage_error(std::string("--size expects WxH, got '") + o.size + "'");
+    p.image_size = cv::Size(w, h);
+    p.seed = std::uint64_t(o.seed);
+    p.distance_mm = o.distance * 1000.0;
+    p.speed_m_s = o.speed;
+    p.light = o.light;
+    gchar *dir = g_dir_make_tmp("treestereo-measure-XXXXXX", nullptr);
+    job.temp_calibration = std::string(dir) + "/rig.yml";
+    g_free(dir);
+    validate_scene_params(p);
+    save_calibration(rig_calibration(p), job.temp_calibration);
+    job.calibration = o.calibration ? o.calibration : job.temp_calibration;
+  } else {
+    if (!o.calibration)
+      usage_error("--calibration FILE is needed for files and cameras");
+    job.calibration = o.calibration;
+  }
+
+  if (o.json) {
+    if (std::string(o.json) == "-") {
+      job.json = &std::cout;
+    } else {
+      job.json_file = std::make_unique<std::ofstream>(o.json);
+      if (!*job.json_file)
+        throw std::runtime_error(std::string("cannot write ") + o.json);
+      job.json = job.json_file.get();
+    }
+  }
+  if (o.csv) {
+    job.csv_file = std::make_unique<std::ofstream>(o.csv);
+    if (!*job.csv_file)
+      throw std::runtime_error(std::string("cannot write ") + o.csv);
+    job.csv = job.csv_file.get();
+    *job.csv << kCsvHeader << "\n";
+  }
+
+  const std::string desc = build_description(job);
+  if (g_getenv("TREESTEREO_MEASURE_DEBUG"))
+    std::fprintf(stderr, "pipeline: %s\n", desc.c_str());
+  err = nullptr;
+  job.pipeline = gst_parse_launch(desc.c_str(), &err);
+  if (!job.pipeline || err) {
+    std::fprintf(stderr, "treestereo-measure: cannot build the pipeline: %s\n",
+                 err ? err->message : "unknown error");
+    if (err)
+      g_error_free(err);
+    if (job.pipeline)
+      gst_object_unref(job.pipeline);
+    return 1;
+  }
+
+  GstElement *metrics = gst_bin_get_by_name(GST_BIN(job.pipeline), "metrics");
+  GstPad *pad = gst_element_get_static_pad(metrics, "src");
+  gst_pad_add_probe(pad, GST_PAD_PROBE_TYPE_BUFFER, on_result, &job, nullptr);
+  gst_object_unref(pad);
+  gst_object_unref(metrics);
+
+  job.loop = g_main_loop_new(nullptr, FALSE);
+  GstBus *bus = gst_element_get_bus(job.pipeline);
+  gst_bus_add_watch(bus, on_bus, &job);
+  gst_object_unref(bus);
+  const guint sig = g_unix_signal_add(SIGINT, on_sigint, &job);
+
+  job.start = std::chrono::steady_clock::now();
+  if (gst_element_set_state(job.pipeline, GST_STATE_PLAYING) == GST_STATE_CHANGE_FAILURE) {
+    // the error message on the bus says why
+    GstMessage *m = gst_bus_pop_filtered(gst_element_get_bus(job.pipeline), GST_MESSAGE_ERROR);
+    if (m) {
+      on_bus(nullptr, m, &job);
+      gst_message_unref(m);
+    } else {
+      std::fprintf(stderr, "treestereo-measure: the pipeline would not start\n");
+    }
+    job.error = true;
+  } else {
+    g_main_loop_run(job.loop);
+  }
+  g_source_remove(sig);
+  gst_element_set_state(job.pipeline, GST_STATE_NULL);
+  gst_object_unref(job.pipeline);
+  g_main_loop_unref(job.loop);
+
+  const double elapsed =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - job.start).count();
+  if (isatty(STDERR_FILENO) && job.total_frames > 0)
+    std::fprintf(stderr, "\n");
+  std::fprintf(stderr,
+               "treestereo-measure: %" G_GUINT64_FORMAT " frames (%" G_GUINT64_FORMAT
+               " with a tree) in %.1f s (%.2f frames/s)%s%s\n",
+               job.frames, job.present, elapsed, elapsed > 0 ? job.frames / elapsed : 0.0,
+               o.record ? ", video: " : "", o.record ? o.record : "");
+  if (!job.temp_calibration.empty()) {
+    g_unlink(job.temp_calibration.c_str());
+    gchar *dir = g_path_get_dirname(job.temp_calibration.c_str());
+    g_rmdir(dir);
+    g_free(dir);
+  }
+  return job.error ? 1 : 0;
+}
+
+} // namespace
+
+int main(int argc, char **argv)
+{
+  try {
+    return run(argc, argv);
+  } catch (const std::exception &e) {
+    std::fprintf(stderr, "treestereo-measure: %s\n", e.what());
+    return 1;
+  }
+}
