@@ -9,6 +9,7 @@ static gboolean plugin_init(GstPlugin *plugin)
 {
   gboolean ret = FALSE;
   ret |= GST_ELEMENT_REGISTER(stereorectify, plugin);
+  ret |= GST_ELEMENT_REGISTER(siftmatch, plugin);
   ret |= GST_ELEMENT_REGISTER(treetestsrc, plugin);
   ret |= GST_ELEMENT_REGISTER(stereodepth, plugin);
   ret |= GST_ELEMENT_REGISTER(treemetrics, plugin);

@@ -1,0 +1,644 @@
+/**
+ * SECTION:element-siftmatch
+ * @title: siftmatch
+ *
+ * Matches SIFT features between the two rectified views of a side-by-side stereo frame (from
+ * stereorectify) under the stereo constraints: an epipolar band around the keypoint's row, a
+ * disparity range (by default derived from a depth range and the frame's
+ * #GstTreeStereoGeometryMeta), a left-right consistency check and sub-pixel refinement of each
+ * disparity by correlation at full resolution. Adds a #GstTreeStereoMatchesMeta (coordinates in
+ * each view's own pixels) and posts a `siftmatch` element message with the keypoint counts,
+ * the match count, the keypoints or matches dropped by each constraint and the wall times.
+ *
+ * With #siftmatch:use-mask and a #GstTreeStereoVegetationMeta from exgsegment on the buffer,
+ * each view is searched only inside its canopy (the mask, or the bounding box when the meta
+ * carries no mask); without that meta the whole view is searched. Pixels pass through
+ * untouched.
+ *
+ * A buffer without the geometry meta, or a stream that is not side by side, is an error.
+ *
+ * ## Example launch line
+ * |[
+ * gst-launch-1.0 -m stereorectify name=r calibration=calib.yml ! exgsegment ! siftmatch ! \
+ *   fakesink   treetestsrc view=left ! r.left   treetestsrc view=right ! r.right
+ * ]|
+ */
+#ifdef HAVE_CONFIG_H
+#include "config.h"
+#endif
+
+#include "common.hpp"
+#include "elements.hpp"
+
+#include "treestereo/match.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+GST_DEBUG_CATEGORY_STATIC(siftmatch_debug);
+#define GST_CAT_DEFAULT siftmatch_debug
+
+using namespace treestereo;
+
+/* Defaults: see docs/elements/siftmatch.md for the measurements behind them. */
+#define DEFAULT_METHOD GST_TREE_STEREO_MATCH_EUCLIDEAN
+#define DEFAULT_RATIO 0.8
+#define DEFAULT_CANDIDATES 5
+#define DEFAULT_EPIPOLAR_TOLERANCE 2.0
+#define DEFAULT_MIN_DISPARITY (-1.0)
+#define DEFAULT_MAX_DISPARITY (-1.0)
+#define DEFAULT_MIN_DEPTH 500.0
+#define DEFAULT_MAX_DEPTH 10000.0
+#define DEFAULT_MUTUAL TRUE
+#define DEFAULT_NFEATURES 0
+#define DEFAULT_CONTRAST_THRESHOLD 0.04
+#define DEFAULT_SCALE 0.0
+#define DEFAULT_USE_MASK TRUE
+#define DEFAULT_REFINE TRUE
+#define DEFAULT_POST_MESSAGES TRUE
+/* scale=0 (automatic) detects on a copy at most this wide: SIFT upsamples it 2x internally, so
+ * its base octave is then at most 1296 px wide whatever the camera's resolution. */
+#define AUTO_SCALE_WIDTH 648.0
+#define MAX_DISPARITY_LIMIT 100000.0
+
+enum {
+  PROP_0,
+  PROP_METHOD,
+  PROP_RATIO,
+  PROP_CANDIDATES,
+  PROP_EPIPOLAR_TOLERANCE,
+  PROP_MIN_DISPARITY,
+  PROP_MAX_DISPARITY,
+  PROP_MIN_DEPTH,
+  PROP_MAX_DEPTH,
+  PROP_MUTUAL,
+  PROP_NFEATURES,
+  PROP_CONTRAST_THRESHOLD,
+  PROP_SCALE,
+  PROP_USE_MASK,
+  PROP_REFINE,
+  PROP_POST_MESSAGES,
+};
+
+namespace {
+
+struct Settings {
+  GstTreeStereoMatchMethod method = DEFAULT_METHOD;
+  double ratio = DEFAULT_RATIO;
+  int candidates = DEFAULT_CANDIDATES;
+  double epipolar_tolerance = DEFAULT_EPIPOLAR_TOLERANCE;
+  double min_disparity = DEFAULT_MIN_DISPARITY;
+  double max_disparity = DEFAULT_MAX_DISPARITY;
+  double min_depth = DEFAULT_MIN_DEPTH;
+  double max_depth = DEFAULT_MAX_DEPTH;
+  bool mutual = DEFAULT_MUTUAL;
+  int nfeatures = DEFAULT_NFEATURES;
+  double contrast_threshold = DEFAULT_CONTRAST_THRESHOLD;
+  double scale = DEFAULT_SCALE;
+  bool use_mask = DEFAULT_USE_MASK;
+  bool refine = DEFAULT_REFINE;
+  bool post_messages = DEFAULT_POST_MESSAGES;
+  guint64 generation = 0; // bumped by every change that needs a new StereoMatcher
+};
+
+/* What a StereoMatcher is built from: the settings' generation and the values derived from the
+ * frame (disparity range from the geometry, automatic scale from the view size). */
+struct MatcherKey {
+  guint64 generation = ~guint64(0);
+  double min_disparity = 0, max_disparity = 0, scale = 0;
+  bool operator==(const MatcherKey &o) const
+  {
+    return generation == o.generation && min_disparity == o.min_disparity &&
+           max_disparity == o.max_disparity && scale == o.scale;
+  }
+};
+
+struct State {
+  std::mutex lock; // guards settings
+  Settings settings;
+
+  // streaming thread only
+  std::unique_ptr<StereoMatcher> matcher;
+  MatcherKey key;
+  bool told_no_vegetation = false;
+};
+
+} // namespace
+
+struct GstSiftMatch {
+  GstVideoFilter parent;
+  State *state;
+};
+
+struct GstSiftMatchClass {
+  GstVideoFilterClass parent_class;
+};
+
+#define GST_TYPE_SIFT_MATCH (gst_sift_match_get_type())
+#define GST_SIFT_MATCH(obj) (G_TYPE_CHECK_INSTANCE_CAST((obj), GST_TYPE_SIFT_MATCH, GstSiftMatch))
+G_DEFINE_TYPE(GstSiftMatch, gst_sift_match, GST_TYPE_VIDEO_FILTER);
+GST_ELEMENT_REGISTER_DEFINE(siftmatch, "siftmatch", GST_RANK_NONE, GST_TYPE_SIFT_MATCH);
+
+#define GST_TYPE_SIFT_MATCH_METHOD (gst_sift_match_method_get_type())
+static GType gst_sift_match_method_get_type(void)
+{
+  static gsize type = 0;
+  static const GEnumValue values[] = {
+      {GST_TREE_STEREO_MATCH_EUCLIDEAN,
+       "Nearest neighbour on Euclidean distance with Lowe's ratio test", "euclidean"},
+      {GST_TREE_STEREO_MATCH_COSINE_NORM,
+       "The paper's: the smallest descriptor angles, then the closest descriptor norm",
+       "cosine-norm"},
+      {0, nullptr, nullptr},
+  };
+  if (g_once_init_enter(&type))
+    g_once_init_leave(&type, g_enum_register_static("GstSiftMatchMethod", values));
+  return GType(type);
+}
+
+#define CAPS GST_VIDEO_CAPS_MAKE(TREESTEREO_VIDEO_FORMATS)
+static GstStaticPadTemplate sink_template =
+    GST_STATIC_PAD_TEMPLATE("sink", GST_PAD_SINK, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
+static GstStaticPadTemplate src_template =
+    GST_STATIC_PAD_TEMPLATE("src", GST_PAD_SRC, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
+
+static Settings snapshot(GstSiftMatch *self)
+{
+  std::lock_guard<std::mutex> g(self->state->lock);
+  return self->state->settings;
+}
+
+/* scale=0: the largest of 1, 1/2, 1/4, ... that brings the view to AUTO_SCALE_WIDTH or below.
+ * Powers of two keep the keypoints of different camera resolutions comparable. */
+static double resolve_scale(double scale, int view_width)
+{
+  if (scale > 0)
+    return scale;
+  double s = 1.0;
+  while (view_width * s > AUTO_SCALE_WIDTH)
+    s *= 0.5;
+  return s;
+}
+
+/* The matcher for these settings and this frame's geometry, rebuilt only when they changed. */
+static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
+                                        const StereoGeometry &g)
+{
+  State *st = self->state;
+  MatcherKey key;
+  key.generation = s.generation;
+  key.min_disparity = s.min_disparity;
+  key.max_disparity = s.max_disparity;
+  if (s.min_disparity < 0 || s.max_disparity < 0) {
+    if (!g.valid())
+      throw std::runtime_error("siftmatch: the stereo geometry meta has no focal length or "
+                               "baseline, so no disparity range can be derived from "
+                               "min-depth/max-depth; set min-disparity and max-disparity");
+    if (!(s.max_depth > s.min_depth))
+      throw std::runtime_error("siftmatch: max-depth (" + std::to_string(s.max_depth) +
+                               " mm) must be above min-depth (" + std::to_string(s.min_depth) +
+                               " mm)");
+    const DisparityRange r = disparity_range_for_depth(g, s.min_depth, s.max_depth);
+    if (s.min_disparity < 0)
+      key.min_disparity = r.min;
+    if (s.max_disparity < 0)
+      key.max_disparity = r.max;
+  }
+  if (key.min_disparity > key.max_disparity)
+    throw std::runtime_error("siftmatch: the disparity range is empty: min " +
+                             std::to_string(key.min_disparity) + " px > max " +
+                             std::to_string(key.max_disparity) +
+                             " px; check min-disparity/max-disparity or min-depth/max-depth");
+  key.scale = resolve_scale(s.scale, g.view_size.width);
+  if (st->matcher && st->key == key)
+    return *st->matcher;
+
+  MatchParams p;
+  p.detect.nfeatures = s.nfeatures;
+  p.detect.contrast_threshold = s.contrast_threshold;
+  p.detect.scale = key.scale;
+  p.detect.use_mask = s.use_mask;
+  p.matcher.method = s.method == GST_TREE_STEREO_MATCH_COSINE_NORM ? MatchMethod::CosineNorm
+                                                                   : MatchMethod::Euclidean;
+  p.matcher.ratio = s.ratio;
+  p.matcher.candidates = s.candidates;
+  p.matcher.constraints.epipolar_tolerance = s.epipolar_tolerance;
+  p.matcher.constraints.min_disparity = key.min_disparity;
+  p.matcher.constraints.max_disparity = key.max_disparity;
+  p.matcher.constraints.mutual = s.mutual;
+  p.refine = s.refine;
+  p.parallel_detect = true;
+  st->matcher = std::make_unique<StereoMatcher>(p);
+  st->key = key;
+  GST_INFO_OBJECT(self, "matcher: %s, disparity %.2f..%.2f px, scale %.3g, band %.2f px",
+                  match_method_name(p.matcher.method), key.min_disparity, key.max_disparity,
+                  key.scale, s.epipolar_tolerance);
+  return *st->matcher;
+}
+
+/* The canopy of one view as a detection mask: the vegetation mask when it has the view's size,
+ * else the bounding box; all zero when no canopy was found (nothing to match there). */
+class ViewMask {
+public:
+  ViewMask(const GstTreeStereoVegetationView *v, cv::Size view_size)
+  {
+    mat_ = cv::Mat::zeros(view_size, CV_8UC1);
+    if (!v->present)
+      return;
+    if (v->mask && int(v->mask_width) == view_size.width &&
+        int(v->mask_height) == view_size.height && gst_buffer_map(v->mask, &map_, GST_MAP_READ)) {
+      buffer_ = v->mask;
+      if (map_.size >= gsize(v->mask_stride) * (v->mask_height - 1) + v->mask_width) {
+        mat_ = cv::Mat(view_size, CV_8UC1, map_.data, v->mask_stride);
+        return;
+      }
+    }
+    const cv::Rect box = cv::Rect(v->bbox_x, v->bbox_y, v->bbox_width, v->bbox_height) &
+                         cv::Rect(cv::Point(0, 0), view_size);
+    mat_(box).setTo(255);
+  }
+  ~ViewMask()
+  {
+    if (buffer_)
+      gst_buffer_unmap(buffer_, &map_);
+  }
+  ViewMask(const ViewMask &) = delete;
+  ViewMask &operator=(const ViewMask &) = delete;
+  const cv::Mat &mat() const { return mat_; }
+
+private:
+  cv::Mat mat_;
+  GstMapInfo map_{};
+  GstBuffer *buffer_ = nullptr;
+};
+
+static void fill_stats(GstTreeStereoMatchStats *out, const Settings &s, const MatchStats &st,
+                       double total_ms)
+{
+  out->method = s.method;
+  out->keypoints_left = guint(st.keypoints[LEFT]);
+  out->keypoints_right = guint(st.keypoints[RIGHT]);
+  out->matches = guint(st.matches);
+  out->candidates_tested = guint(st.candidates_tested);
+  out->rejected_ratio = guint(st.rejected_ratio);
+  out->rejected_epipolar = guint(st.rejected_epipolar);
+  out->rejected_disparity = guint(st.rejected_disparity);
+  out->rejected_mutual = guint(st.rejected_mutual);
+  out->rejected_refine = guint(st.rejected_refine);
+  out->detect_ms = st.detect_ms;
+  out->match_ms = st.match_ms;
+  out->refine_ms = st.refine_ms;
+  out->total_ms = total_ms;
+}
+
+/* Runs the matcher on @buf (read only) and attaches the matches meta. Throws on bad input. */
+static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const Settings &s,
+                         GstTreeStereoMatchStats *out)
+{
+  const auto t0 = std::chrono::steady_clock::now();
+  GstVideoFilter *filter = GST_VIDEO_FILTER(self);
+  const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
+  if (!gm)
+    throw std::runtime_error("siftmatch needs rectified stereo pairs from stereorectify: no "
+                             "stereo geometry meta on the buffer");
+  const int frame_w = GST_VIDEO_INFO_WIDTH(&filter->in_info);
+  const int frame_h = GST_VIDEO_INFO_HEIGHT(&filter->in_info);
+  if (int(gm->view_width) * 2 != frame_w || int(gm->view_height) != frame_h)
+    throw std::runtime_error("siftmatch: the stereo geometry meta is for two " +
+                             std::to_string(gm->view_width) + "x" +
+                             std::to_string(gm->view_height) + " views but the frame is " +
+                             std::to_string(frame_w) + "x" + std::to_string(frame_h));
+  const StereoGeometry geometry = treestereo::gst::geometry_from_meta(gm);
+  const StereoMatcher &matcher = matcher_for(self, s, geometry);
+
+  StereoMatchResult r;
+  {
+    /* the mapped frame holds a ref on @buf: the meta is added after it is unmapped */
+    treestereo::gst::MappedFrame frame(&filter->in_info, buf, GST_MAP_READ);
+    if (!frame.ok())
+      throw std::runtime_error("siftmatch: could not map the frame");
+    const cv::Mat mat = frame.mat();
+    const cv::Mat left = treestereo::gst::view_mat(mat, LEFT, 2);
+    const cv::Mat right = treestereo::gst::view_mat(mat, RIGHT, 2);
+
+    const GstTreeStereoVegetationMeta *veg =
+        s.use_mask ? gst_buffer_get_tree_stereo_vegetation_meta(buf) : nullptr;
+    if (s.use_mask && !veg && !self->state->told_no_vegetation) {
+      self->state->told_no_vegetation = true;
+      GST_DEBUG_OBJECT(self, "no vegetation meta on the buffers: searching the whole views");
+    }
+    if (veg && veg->n_views != 2)
+      throw std::runtime_error("siftmatch: the vegetation meta holds " +
+                               std::to_string(veg->n_views) +
+                               " view(s); a side-by-side stereo frame needs 2");
+    std::unique_ptr<ViewMask> masks[2];
+    if (veg)
+      for (int v = 0; v < 2; v++)
+        masks[v] = std::make_unique<ViewMask>(&veg->views[v], left.size());
+    r = matcher.run(left, right, veg ? masks[LEFT]->mat() : cv::Mat(),
+                    veg ? masks[RIGHT]->mat() : cv::Mat());
+  }
+
+  std::vector<GstTreeStereoMatch> matches(r.matches.size());
+  for (std::size_t i = 0; i < r.matches.size(); i++) {
+    const StereoMatch &m = r.matches[i];
+    matches[i] = GstTreeStereoMatch{m.xl, m.yl, m.xr, m.yr, m.score};
+  }
+  gst_buffer_add_tree_stereo_matches_meta(buf, s.method, guint(r.stats.keypoints[LEFT]),
+                                          guint(r.stats.keypoints[RIGHT]), matches.data(),
+                                          guint(matches.size()));
+  const double total_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  fill_stats(out, s, r.stats, total_ms);
+  GST_LOG_OBJECT(self, "%u/%u keypoints, %u matches, %.1f ms", out->keypoints_left,
+                 out->keypoints_right, out->matches, total_ms);
+}
+
+static GstFlowReturn gst_sift_match_transform_ip(GstBaseTransform *trans, GstBuffer *buf)
+{
+  GstSiftMatch *self = GST_SIFT_MATCH(trans);
+  const Settings s = snapshot(self);
+  GstTreeStereoMatchStats stats{};
+  const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
+    match_buffer(self, buf, s, &stats);
+    return true;
+  });
+  if (!ok)
+    return GST_FLOW_ERROR;
+  if (s.post_messages) {
+    GstTreeStereoTimes times;
+    gst_tree_stereo_times_from_buffer(&times, buf, &trans->segment);
+    treestereo::gst::post_element_message(GST_ELEMENT(self),
+                                          gst_tree_stereo_match_message_structure(&stats, &times));
+  }
+  return GST_FLOW_OK;
+}
+
+static gboolean gst_sift_match_set_info(GstVideoFilter *filter, GstCaps *incaps,
+                                        GstVideoInfo *in_info, GstCaps *outcaps,
+                                        GstVideoInfo *out_info)
+{
+  if (treestereo::gst::n_views_of(in_info) != 2) {
+    GST_ELEMENT_ERROR(filter, CORE, NEGOTIATION,
+                      ("siftmatch needs side-by-side stereo frames (multiview-mode=side-by-side) "
+                       "from stereorectify"),
+                      ("caps %" GST_PTR_FORMAT, incaps));
+    return FALSE;
+  }
+  return TRUE;
+}
+
+static gboolean gst_sift_match_start(GstBaseTransform *trans)
+{
+  State *st = GST_SIFT_MATCH(trans)->state;
+  st->matcher.reset();
+  st->key = MatcherKey();
+  st->told_no_vegetation = false;
+  return TRUE;
+}
+
+static gboolean gst_sift_match_stop(GstBaseTransform *trans)
+{
+  GST_SIFT_MATCH(trans)->state->matcher.reset();
+  return TRUE;
+}
+
+static void gst_sift_match_set_property(GObject *object, guint prop_id, const GValue *value,
+                                        GParamSpec *pspec)
+{
+  GstSiftMatch *self = GST_SIFT_MATCH(object);
+  std::lock_guard<std::mutex> g(self->state->lock);
+  Settings &s = self->state->settings;
+  switch (prop_id) {
+  case PROP_METHOD:
+    s.method = GstTreeStereoMatchMethod(g_value_get_enum(value));
+    break;
+  case PROP_RATIO:
+    s.ratio = g_value_get_double(value);
+    break;
+  case PROP_CANDIDATES:
+    s.candidates = g_value_get_int(value);
+    break;
+  case PROP_EPIPOLAR_TOLERANCE:
+    s.epipolar_tolerance = g_value_get_double(value);
+    break;
+  case PROP_MIN_DISPARITY:
+    s.min_disparity = g_value_get_double(value);
+    break;
+  case PROP_MAX_DISPARITY:
+    s.max_disparity = g_value_get_double(value);
+    break;
+  case PROP_MIN_DEPTH:
+    s.min_depth = g_value_get_double(value);
+    break;
+  case PROP_MAX_DEPTH:
+    s.max_depth = g_value_get_double(value);
+    break;
+  case PROP_MUTUAL:
+    s.mutual = g_value_get_boolean(value);
+    break;
+  case PROP_NFEATURES:
+    s.nfeatures = g_value_get_int(value);
+    break;
+  case PROP_CONTRAST_THRESHOLD:
+    s.contrast_threshold = g_value_get_double(value);
+    break;
+  case PROP_SCALE:
+    s.scale = g_value_get_double(value);
+    break;
+  case PROP_USE_MASK:
+    s.use_mask = g_value_get_boolean(value);
+    break;
+  case PROP_REFINE:
+    s.refine = g_value_get_boolean(value);
+    break;
+  case PROP_POST_MESSAGES:
+    s.post_messages = g_value_get_boolean(value);
+    return; // no new matcher needed
+  default:
+    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
+    return;
+  }
+  s.generation++;
+}
+
+static void gst_sift_match_get_property(GObject *object, guint prop_id, GValue *value,
+                                        GParamSpec *pspec)
+{
+  GstSiftMatch *self = GST_SIFT_MATCH(object);
+  std::lock_guard<std::mutex> g(self->state->lock);
+  const Settings &s = self->state->settings;
+  switch (prop_id) {
+  case PROP_METHOD:
+    g_value_set_enum(value, s.method);
+    break;
+  case PROP_RATIO:
+    g_value_set_double(value, s.ratio);
+    break;
+  case PROP_CANDIDATES:
+    g_value_set_int(value, s.candidates);
+    break;
+  case PROP_EPIPOLAR_TOLERANCE:
+    g_value_set_double(value, s.epipolar_tolerance);
+    break;
+  case PROP_MIN_DISPARITY:
+    g_value_set_double(value, s.min_disparity);
+    break;
+  case PROP_MAX_DISPARITY:
+    g_value_set_double(value, s.max_disparity);
+    break;
+  case PROP_MIN_DEPTH:
+    g_value_set_double(value, s.min_depth);
+    break;
+  case PROP_MAX_DEPTH:
+    g_value_set_double(value, s.max_depth);
+    break;
+  case PROP_MUTUAL:
+    g_value_set_boolean(value, s.mutual);
+    break;
+  case PROP_NFEATURES:
+    g_value_set_int(value, s.nfeatures);
+    break;
+  case PROP_CONTRAST_THRESHOLD:
+    g_value_set_double(value, s.contrast_threshold);
+    break;
+  case PROP_SCALE:
+    g_value_set_double(value, s.scale);
+    break;
+  case PROP_USE_MASK:
+    g_value_set_boolean(value, s.use_mask);
+    break;
+  case PROP_REFINE:
+    g_value_set_boolean(value, s.refine);
+    break;
+  case PROP_POST_MESSAGES:
+    g_value_set_boolean(value, s.post_messages);
+    break;
+  default:
+    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
+    break;
+  }
+}
+
+static void gst_sift_match_finalize(GObject *object)
+{
+  GstSiftMatch *self = GST_SIFT_MATCH(object);
+  delete self->state;
+  self->state = nullptr;
+  G_OBJECT_CLASS(gst_sift_match_parent_class)->finalize(object);
+}
+
+#define PROP_FLAGS \
+  GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)
+
+static void install_double(GObjectClass *klass, guint id, const char *name, const char *nick,
+                           const char *blurb, double min, double max, double def)
+{
+  g_object_class_install_property(klass, id,
+                                  g_param_spec_double(name, nick, blurb, min, max, def, PROP_FLAGS));
+}
+
+static void install_boolean(GObjectClass *klass, guint id, const char *name, const char *nick,
+                            const char *blurb, gboolean def)
+{
+  g_object_class_install_property(klass, id,
+                                  g_param_spec_boolean(name, nick, blurb, def, PROP_FLAGS));
+}
+
+static void gst_sift_match_class_init(GstSiftMatchClass *klass)
+{
+  GObjectClass *gobject_class = G_OBJECT_CLASS(klass);
+  GstElementClass *element_class = GST_ELEMENT_CLASS(klass);
+  GstBaseTransformClass *trans_class = GST_BASE_TRANSFORM_CLASS(klass);
+  GstVideoFilterClass *filter_class = GST_VIDEO_FILTER_CLASS(klass);
+
+  GST_DEBUG_CATEGORY_INIT(siftmatch_debug, "siftmatch", 0, "treestereo siftmatch");
+
+  gobject_class->set_property = gst_sift_match_set_property;
+  gobject_class->get_property = gst_sift_match_get_property;
+  gobject_class->finalize = gst_sift_match_finalize;
+
+  g_object_class_install_property(
+      gobject_class, PROP_METHOD,
+      g_param_spec_enum("method", "Method", "How a keypoint's partner is chosen among the "
+                        "candidates that satisfy the stereo constraints",
+                        GST_TYPE_SIFT_MATCH_METHOD, DEFAULT_METHOD, PROP_FLAGS));
+  install_double(gobject_class, PROP_RATIO, "ratio", "Ratio",
+                 "Ratio test: keep a match only when its distance (euclidean) or angle "
+                 "(cosine-norm) is below ratio x the second best's; 1 turns the test off",
+                 0.01, 1.0, DEFAULT_RATIO);
+  g_object_class_install_property(
+      gobject_class, PROP_CANDIDATES,
+      g_param_spec_int("candidates", "Candidates",
+                       "cosine-norm: how many smallest angles compete on the norm difference",
+                       1, 128, DEFAULT_CANDIDATES, PROP_FLAGS));
+  install_double(gobject_class, PROP_EPIPOLAR_TOLERANCE, "epipolar-tolerance",
+                 "Epipolar tolerance",
+                 "Largest row difference |yl - yr| (px) of a candidate; negative = no epipolar "
+                 "constraint (every keypoint of the other view is a candidate)",
+                 -1.0, 1000.0, DEFAULT_EPIPOLAR_TOLERANCE);
+  install_double(gobject_class, PROP_MIN_DISPARITY, "min-disparity", "Minimum disparity",
+                 "Smallest disparity xl - xr (px); -1 = from max-depth and the stereo geometry",
+                 -1.0, MAX_DISPARITY_LIMIT, DEFAULT_MIN_DISPARITY);
+  install_double(gobject_class, PROP_MAX_DISPARITY, "max-disparity", "Maximum disparity",
+                 "Largest disparity xl - xr (px); -1 = from min-depth and the stereo geometry",
+                 -1.0, MAX_DISPARITY_LIMIT, DEFAULT_MAX_DISPARITY);
+  install_double(gobject_class, PROP_MIN_DEPTH, "min-depth", "Minimum depth",
+                 "Nearest depth (mm) searched when max-disparity is -1", 1.0, 1e6,
+                 DEFAULT_MIN_DEPTH);
+  install_double(gobject_class, PROP_MAX_DEPTH, "max-depth", "Maximum depth",
+                 "Farthest depth (mm) searched when min-disparity is -1", 1.0, 1e7,
+                 DEFAULT_MAX_DEPTH);
+  install_boolean(gobject_class, PROP_MUTUAL, "mutual", "Mutual",
+                  "Keep a match only when matching back from the other view picks the same pair",
+                  DEFAULT_MUTUAL);
+  g_object_class_install_property(
+      gobject_class, PROP_NFEATURES,
+      g_param_spec_int("nfeatures", "Features", "Keep the N strongest keypoints per view; 0 = all",
+                       0, G_MAXINT, DEFAULT_NFEATURES, PROP_FLAGS));
+  install_double(gobject_class, PROP_CONTRAST_THRESHOLD, "contrast-threshold",
+                 "Contrast threshold", "SIFT's contrast threshold (larger: fewer, stronger "
+                 "keypoints)", 0.001, 1.0, DEFAULT_CONTRAST_THRESHOLD);
+  install_double(gobject_class, PROP_SCALE, "scale", "Scale",
+                 "Detect on the views resized by this factor (keypoints are reported and "
+                 "refined at full resolution); 0 = automatic: 1, 1/2, 1/4... whichever first "
+                 "brings a view to 648 px wide or less",
+                 0.0, 1.0, DEFAULT_SCALE);
+  install_boolean(gobject_class, PROP_USE_MASK, "use-mask", "Use mask",
+                  "Detect only inside the canopy of the vegetation meta (when there is one)",
+                  DEFAULT_USE_MASK);
+  install_boolean(gobject_class, PROP_REFINE, "refine", "Refine",
+                  "Refine each disparity to sub-pixel by correlation at full resolution and "
+                  "drop matches without a clear correlation peak",
+                  DEFAULT_REFINE);
+  install_boolean(gobject_class, PROP_POST_MESSAGES, "post-messages", "Post messages",
+                  "Post a siftmatch element message per frame", DEFAULT_POST_MESSAGES);
+
+  gst_element_class_add_static_pad_template(element_class, &sink_template);
+  gst_element_class_add_static_pad_template(element_class, &src_template);
+  gst_element_class_set_static_metadata(
+      element_class, "SIFT stereo matcher", "Filter/Analyzer/Video",
+      "Matches SIFT features between the rectified views of a side-by-side stereo frame under "
+      "the stereo constraints and attaches the matches as a meta",
+      "treestereo developers");
+
+  /* Our own transform_ip maps the frame read-only: the pixels are never written. */
+  trans_class->transform_ip = gst_sift_match_transform_ip;
+  trans_class->transform_ip_on_passthrough = FALSE;
+  trans_class->start = gst_sift_match_start;
+  trans_class->stop = gst_sift_match_stop;
+  filter_class->set_info = gst_sift_match_set_info;
+
+  gst_type_mark_as_plugin_api(GST_TYPE_SIFT_MATCH_METHOD, GstPluginAPIFlags(0));
+}
+
+static void gst_sift_match_init(GstSiftMatch *self)
+{
+  self->state = new State();
+  gst_base_transform_set_in_place(GST_BASE_TRANSFORM(self), TRUE);
+  gst_base_transform_set_passthrough(GST_BASE_TRANSFORM(self), FALSE);
+}
