@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "treestereo/metrics.hpp"
 #include "treestereo/types.hpp"
 
 #include <exception>
@@ -62,6 +63,10 @@ void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *meta);
 void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *view);
 /* Vegetation view of the meta -> silhouette; the mask is wrapped (valid while @mask_map is). */
 Silhouette silhouette_from_view(const GstTreeStereoVegetationView *view, GstMapInfo *mask_map);
+
+/* Metrics of the meta -> lib/ metrics (bands too; depth_measured and extent_depth_m, which the
+ * meta does not carry, stay false/0). */
+TreeMetrics metrics_from_meta(const GstTreeStereoMetrics *m);
 
 /* Posts an element message built by the meta library (call with no lock held). */
 void post_element_message(GstElement *element, GstStructure *s);

@@ -9,6 +9,7 @@ static gboolean plugin_init(GstPlugin *plugin)
 {
   gboolean ret = FALSE;
   ret |= GST_ELEMENT_REGISTER(stereorectify, plugin);
+  ret |= GST_ELEMENT_REGISTER(treeoverlay, plugin);
   return ret;
 }
 
