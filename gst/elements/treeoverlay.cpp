@@ -22,9 +22,9 @@
  *
  * ## Example launch lines
  * |[
- * gst-launch-1.0 videotestsrc num-buffers=30 ! \
- *   video/x-raw,format=RGB,width=640,height=240,multiview-mode=side-by-side ! treeoverlay ! \
- *   videoconvert ! x264enc ! mp4mux ! filesink location=out.mp4
+ * gst-launch-1.0 -e videotestsrc num-buffers=30 ! video/x-raw,format=RGB,width=640,height=240 ! \
+ *   capssetter caps="video/x-raw,multiview-mode=side-by-side" ! treeoverlay ! videoconvert ! \
+ *   video/x-raw,format=I420 ! x264enc ! mp4mux ! filesink location=out.mp4
  * ]|
  * |[
  * gst-launch-1.0 stereorectify name=r calibration=calib.yml ! exgsegment ! siftmatch ! \
