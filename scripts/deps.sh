@@ -11,7 +11,7 @@ packages=(
   libaravis-dev libusb-1.0-0-dev
   libgtest-dev
   # run: gst-launch/gst-inspect and the stock elements the pipelines use
-  gstreamer1.0-tools gstreamer1.0-plugins-base gstreamer1.0-plugins-good
+  gstreamer1.0-tools gstreamer1.0-plugins-base gstreamer1.0-plugins-base-apps gstreamer1.0-plugins-good
   gstreamer1.0-plugins-bad gstreamer1.0-plugins-ugly gstreamer1.0-libav gstreamer1.0-opencv
   libaravis-0.8-0 aravis-tools
   # tests: memcheck, and the fake camera's loopback address

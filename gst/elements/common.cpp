@@ -291,6 +291,41 @@ bool decide_video_allocation(GstElement *element, GstQuery *query)
   return true;
 }
 
+TreeMetrics metrics_from_meta(const GstTreeStereoMetrics *m)
+{
+  TreeMetrics t;
+  t.tree_present = m->tree_present;
+  if (!m->tree_present)
+    return t;
+  t.distance_m = m->distance_m;
+  t.height_m = m->height_m;
+  t.width_m = m->width_m;
+  t.thickness_m = m->thickness_m;
+  t.area_m2 = m->area_m2;
+  t.perimeter_m = m->perimeter_m;
+  t.complexity = m->complexity;
+  t.centroid_m = cv::Point3d(m->centroid_m[0], m->centroid_m[1], m->centroid_m[2]);
+  t.clipped.top = (m->clipped & GST_TREE_STEREO_CLIPPED_TOP) != 0;
+  t.clipped.bottom = (m->clipped & GST_TREE_STEREO_CLIPPED_BOTTOM) != 0;
+  t.clipped.left = (m->clipped & GST_TREE_STEREO_CLIPPED_LEFT) != 0;
+  t.clipped.right = (m->clipped & GST_TREE_STEREO_CLIPPED_RIGHT) != 0;
+  t.points = m->n_points;
+  t.matches = m->n_matches;
+  for (guint i = 0; m->bands && i < m->n_bands; i++) {
+    const GstTreeStereoBand &b = m->bands[i];
+    Band o;
+    o.present = b.present;
+    o.top_m = b.top_m;
+    o.bottom_m = b.bottom_m;
+    o.left_m = b.left_m;
+    o.right_m = b.right_m;
+    o.width_m = b.width_m;
+    o.depth_m = b.depth_m;
+    t.bands.push_back(o);
+  }
+  return t;
+}
+
 void post_element_message(GstElement *element, GstStructure *s)
 {
   gst_element_post_message(element, gst_message_new_element(GST_OBJECT(element), s));

@@ -91,6 +91,10 @@ void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out);
  * downstream's pool when it takes our config, else a GstVideoBufferPool, sized for a frame. */
 bool decide_video_allocation(GstElement *element, GstQuery *query);
 
+/* Metrics of the meta -> lib/ metrics (bands too; depth_measured and extent_depth_m, which the
+ * meta does not carry, stay false/0). */
+TreeMetrics metrics_from_meta(const GstTreeStereoMetrics *m);
+
 /* Posts an element message built by the meta library (call with no lock held). */
 void post_element_message(GstElement *element, GstStructure *s);
 

@@ -13,6 +13,7 @@ static gboolean plugin_init(GstPlugin *plugin)
   ret |= GST_ELEMENT_REGISTER(treetestsrc, plugin);
   ret |= GST_ELEMENT_REGISTER(stereodepth, plugin);
   ret |= GST_ELEMENT_REGISTER(treemetrics, plugin);
+  ret |= GST_ELEMENT_REGISTER(treeoverlay, plugin);
   return ret;
 }
 
