@@ -10,6 +10,7 @@ static gboolean plugin_init(GstPlugin *plugin)
   gboolean ret = FALSE;
   ret |= GST_ELEMENT_REGISTER(stereorectify, plugin);
   ret |= GST_ELEMENT_REGISTER(treetestsrc, plugin);
+  ret |= GST_ELEMENT_REGISTER(exgsegment, plugin);
   return ret;
 }
 
