@@ -14,11 +14,15 @@
  * canopy was found, and posts an `exgsegment` element message with the figures per view
  * (see docs/elements/exgsegment.md for every field).
  *
- * ## Example launch line
+ * ## Example launch lines
+ * |[
+ * gst-launch-1.0 -m treetestsrc num-buffers=3 ! exgsegment ! fakesink
+ * ]|
  * |[
  * gst-launch-1.0 -m stereorectify name=r calibration=rig.yml ! exgsegment ! fakesink \
- *   treetestsrc view=left calibration-out=rig.yml ! r.left  treetestsrc view=right ! r.right
+ *   treetestsrc view=left ! r.left  treetestsrc view=right ! r.right
  * ]|
+ * (rig.yml written beforehand by treetestsrc calibration-out=rig.yml, or a real calibration)
  */
 #ifdef HAVE_CONFIG_H
 #include "config.h"
