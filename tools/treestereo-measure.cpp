@@ -275,11 +275,12 @@ void print_progress(Job &job, const GstTreeStereoMetricsMeta *mm)
   const bool tty = isatty(STDERR_FILENO);
   if (job.total_frames > 0 && tty) {
     const int width = 30;
-    const double frac = std::min(1.0, double(job.frames) / job.total_frames);
+    const double frac = std::min(1.0, double(job.frames + 1) / job.total_frames);
     const int fill = int(frac * width);
-    const double eta = job.frames > 0 ? elapsed / job.frames * (job.total_frames - job.frames) : 0;
+    const double done = double(job.frames + 1);
+    const double eta = elapsed / done * std::max(0.0, job.total_frames - done);
     std::fprintf(stderr, "\r[%.*s%*s] %" G_GUINT64_FORMAT "/%d  ETA %.0f s ", fill,
-                 "##############################", width - fill, "", job.frames,
+                 "##############################", width - fill, "", job.frames + 1,
                  job.total_frames, eta);
     std::fflush(stderr);
   }
@@ -315,10 +316,10 @@ GstPadProbeReturn on_result(GstPad *, GstPadProbeInfo *info, gpointer data)
     write_json(job, buf, mm);
   if (job.csv)
     write_csv(job, buf, mm);
+  print_progress(job, mm);
   job.frames++;
   if (mm && mm->metrics.tree_present)
     job.present++;
-  print_progress(job, mm);
   return GST_PAD_PROBE_OK;
 }
 
@@ -426,14 +427,28 @@ std::string build_description(Job &job)
   d << " ! treemetrics name=metrics bands=" << o.bands << " smoothing=" << o.smoothing;
   if (o.record) {
     d << " ! tee name=t t. ! queue ! fakesink name=results sync=false async=false"
-      << " t. ! queue ! treeoverlay ! videoconvert ! x264enc bitrate=" << o.bitrate
-      << " speed-preset=veryfast ! h264parse ! mp4mux ! filesink location="
+      << " t. ! queue ! treeoverlay ! videoconvert ! video/x-raw,format=I420 ! x264enc bitrate="
+      << o.bitrate
+      << " speed-preset=veryfast tune=zerolatency ! h264parse ! mp4mux ! filesink location="
       << quoted(o.record);
   } else {
     d << " ! fakesink name=results sync=false";
   }
   d << "  " << left << " ! rect.left  " << right << " ! rect.right";
   return d.str();
+}
+
+// Finds the treestereo plugin where this tool was installed, or in the build tree it was built
+// in, when GST_PLUGIN_PATH does not already lead to it.
+void ensure_plugin()
+{
+  if (GstPluginFeature *f = gst_registry_lookup_feature(gst_registry_get(), "stereorectify")) {
+    gst_object_unref(f);
+    return;
+  }
+  for (const char *dir : {TREESTEREO_PLUGIN_INSTALL_DIR, TREESTEREO_PLUGIN_BUILD_DIR})
+    if (g_file_test(dir, G_FILE_TEST_IS_DIR) && gst_registry_scan_path(gst_registry_get(), dir))
+      return;
 }
 
 int run(int argc, char **argv)
@@ -554,6 +569,7 @@ int run(int argc, char **argv)
     *job.csv << kCsvHeader << "\n";
   }
 
+  ensure_plugin();
   const std::string desc = build_description(job);
   if (g_getenv("TREESTEREO_MEASURE_DEBUG"))
     std::fprintf(stderr, "pipeline: %s\n", desc.c_str());
