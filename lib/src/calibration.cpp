@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -55,6 +56,11 @@ std::string trim(const std::string &s)
 // person what went wrong.
 std::string read_checked(const std::string &file)
 {
+  // An ifstream opens a directory without complaint and then reads nothing, which would be
+  // reported as "file is empty".
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec))
+    throw CalibrationError(file, "", "is a directory, not a calibration file");
   std::ifstream in(file, std::ios::binary);
   if (!in)
     throw CalibrationError(file, "", "file is missing or cannot be read");

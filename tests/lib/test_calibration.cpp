@@ -344,6 +344,9 @@ TEST(CalibrationErrors, FileMissing)
   TempDir dir;
   expect_error([&] { load_calibration(dir.file("nothere.yml")); }, "nothere.yml", "", "missing");
   expect_error([&] { load_calibration(dir.file("a.yaml") + ";" + dir.file("b.yaml")); }, "a.yaml", "", "missing");
+  // A directory opens as a stream that reads nothing: it must not be called "empty".
+  fs::create_directories(dir.file("calib.yml"));
+  expect_error([&] { load_calibration(dir.file("calib.yml")); }, "calib.yml", "", "is a directory");
 }
 
 TEST(CalibrationErrors, WrongFormat)
