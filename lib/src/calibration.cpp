@@ -140,6 +140,15 @@ cv::Mat read_matrix(const cv::FileStorage &fs, const std::string &file, const st
   return d;
 }
 
+// A count or size read as a double: converting an out-of-range or NaN double to int is
+// undefined behaviour, so such values are refused first (found by fuzzing).
+int checked_int(double v, const std::string &file, const std::string &key)
+{
+  if (!(v >= -1e9 && v <= 1e9))
+    throw CalibrationError(file, key, "value out of range (|value| must be below 1e9)");
+  return static_cast<int>(v);
+}
+
 int read_int(const cv::FileStorage &fs, const std::string &file, const std::string &key)
 {
   const cv::FileNode node = fs[key];
@@ -147,7 +156,7 @@ int read_int(const cv::FileStorage &fs, const std::string &file, const std::stri
     return 0;
   if (!node.isInt() && !node.isReal())
     throw CalibrationError(file, key, "must be a number");
-  return static_cast<int>(node.real());
+  return checked_int(node.real(), file, key);
 }
 
 // image_width/image_height, or an empty size when both are absent.
@@ -229,8 +238,8 @@ cv::Mat read_ros_matrix(const cv::FileStorage &fs, const std::string &file, cons
     throw CalibrationError(file, key, "missing key");
   if (!node.isMap() || node["data"].empty())
     throw CalibrationError(file, key, "expected a ROS matrix {rows, cols, data}");
-  const int r = node["rows"].empty() ? rows : static_cast<int>(node["rows"].real());
-  const int k = node["cols"].empty() ? cols : static_cast<int>(node["cols"].real());
+  const int r = node["rows"].empty() ? rows : checked_int(node["rows"].real(), file, key + ".rows");
+  const int k = node["cols"].empty() ? cols : checked_int(node["cols"].real(), file, key + ".cols");
   const cv::FileNode data = node["data"];
   if (!data.isSeq())
     throw CalibrationError(file, key, "data must be a list of numbers");

@@ -404,3 +404,26 @@ TEST(Calibration, ScalesOnlyByAPureScale)
   EXPECT_NO_THROW(scale_calibration(big, {864, 648}));
   EXPECT_NO_THROW(scale_calibration(big, {865, 649}));
 }
+
+// Found by fuzzing: sizes and matrix dimensions far outside int were cast to int (undefined
+// behaviour). They are refused with the key named.
+TEST(CalibrationErrors, NumbersBeyondIntRange)
+{
+  TempDir dir;
+  StereoCalibration rig = make_rig();
+  add_rectification(rig);
+  std::string left = ros_camera("left", rig.image_size, rig.M1, rig.D1, rig.R1, rig.P1);
+  write_text(dir.file("right.yaml"), ros_camera("right", rig.image_size, rig.M2, rig.D2, rig.R2, rig.P2));
+  const std::string rows = "camera_matrix:\n  rows: 3";
+  write_text(dir.file("left.yaml"), std::string(left).replace(left.find(rows), rows.size(),
+                                                             "camera_matrix:\n  rows: 1e300"));
+  expect_error([&] { load_calibration(dir.file("left.yaml") + ";" + dir.file("right.yaml")); },
+               "left.yaml", "camera_matrix.rows", "out of range");
+  write_opencv(dir.file("good.yml"), rig);
+  std::ifstream in(dir.file("good.yml"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string width = "image_width: 640";
+  ASSERT_NE(text.find(width), std::string::npos);
+  write_text(dir.file("big.yml"), text.replace(text.find(width), width.size(), "image_width: 1e20"));
+  expect_error([&] { load_calibration(dir.file("big.yml")); }, "big.yml", "image_width", "out of range");
+}
