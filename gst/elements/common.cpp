@@ -127,7 +127,8 @@ void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *m)
     m->R1[i] = g.R1.val[i];
 }
 
-void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *v)
+void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *v,
+                        GstBuffer *mask_buffer)
 {
   gst_tree_stereo_vegetation_view_clear(v);
   v->present = s.present;
@@ -151,19 +152,26 @@ void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *v)
     xy.push_back(p.y);
   }
   gst_tree_stereo_vegetation_view_set_contour(v, xy.data(), guint(s.contour.size()));
-  if (!s.mask.empty()) {
-    CV_Assert(s.mask.type() == CV_8UC1);
-    const gsize stride = gsize(s.mask.cols);
-    GstBuffer *mask = gst_buffer_new_allocate(nullptr, stride * gsize(s.mask.rows), nullptr);
-    GstMapInfo map;
-    gst_buffer_map(mask, &map, GST_MAP_WRITE);
-    cv::Mat dst(s.mask.rows, s.mask.cols, CV_8UC1, map.data, stride);
-    s.mask.copyTo(dst);
-    gst_buffer_unmap(mask, &map);
-    gst_tree_stereo_vegetation_view_set_mask(v, mask, guint(s.mask.cols), guint(s.mask.rows),
-                                             guint(stride));
-    gst_buffer_unref(mask);
+  if (s.mask.empty())
+    return;
+  CV_Assert(s.mask.type() == CV_8UC1);
+  if (mask_buffer) {
+    CV_Assert(gst_buffer_get_size(mask_buffer) >= s.mask.step[0] * gsize(s.mask.rows - 1) +
+                                                      gsize(s.mask.cols));
+    gst_tree_stereo_vegetation_view_set_mask(v, mask_buffer, guint(s.mask.cols),
+                                             guint(s.mask.rows), guint(s.mask.step[0]));
+    return;
   }
+  const gsize stride = gsize(s.mask.cols);
+  GstBuffer *mask = gst_buffer_new_allocate(nullptr, stride * gsize(s.mask.rows), nullptr);
+  GstMapInfo map;
+  gst_buffer_map(mask, &map, GST_MAP_WRITE);
+  cv::Mat dst(s.mask.rows, s.mask.cols, CV_8UC1, map.data, stride);
+  s.mask.copyTo(dst);
+  gst_buffer_unmap(mask, &map);
+  gst_tree_stereo_vegetation_view_set_mask(v, mask, guint(s.mask.cols), guint(s.mask.rows),
+                                           guint(stride));
+  gst_buffer_unref(mask);
 }
 
 Silhouette silhouette_from_view(const GstTreeStereoVegetationView *v, GstMapInfo *mask_map)

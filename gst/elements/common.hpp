@@ -63,8 +63,12 @@ int n_views_of(const GstVideoInfo *info);
 StereoGeometry geometry_from_meta(const GstTreeStereoGeometryMeta *meta);
 void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *meta);
 
-/* Silhouette (lib/) -> vegetation view of the meta (mask shared as a new GstBuffer). */
-void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *view);
+/* Silhouette (lib/) -> vegetation view of the meta. Without @mask_buffer the mask is copied into
+ * a new GstBuffer. With it, s.mask must already wrap @mask_buffer's memory (the caller let lib/
+ * write into the mapped buffer, row stride s.mask.step): the buffer is attached as it is, no
+ * copy. No mask is attached when s.present is false. */
+void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *view,
+                        GstBuffer *mask_buffer = nullptr);
 /* Vegetation view of the meta -> silhouette; the mask is wrapped (valid while @mask_map is). */
 Silhouette silhouette_from_view(const GstTreeStereoVegetationView *view, GstMapInfo *mask_map);
 

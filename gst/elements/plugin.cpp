@@ -14,6 +14,7 @@ static gboolean plugin_init(GstPlugin *plugin)
   ret |= GST_ELEMENT_REGISTER(stereodepth, plugin);
   ret |= GST_ELEMENT_REGISTER(treemetrics, plugin);
   ret |= GST_ELEMENT_REGISTER(treeoverlay, plugin);
+  ret |= GST_ELEMENT_REGISTER(exgsegment, plugin);
   return ret;
 }
 

@@ -1,0 +1,299 @@
+// bench-accuracy: the measuring chain against the synthetic orchard's ground truth, as users run
+// it (treetestsrc x2 -> stereorectify -> exgsegment -> siftmatch -> stereodepth -> treemetrics),
+// swept over distance, seed, light and frame size. Prints the paper-style distance table and
+// the error summary as markdown.
+//
+//   bench-accuracy [--sizes 1296x972,2592x1944] [--distances 1.5:2.5:0.1] [--seeds 1,2,3]
+//                  [--lights 0.7,1.0,1.3] [--frames 1] [--csv FILE]
+//
+// Truth: distance and thickness are the visible canopy surface's median and p95-p05 depth in the
+// rectified-left frame (the renderer's truth rotated by the geometry meta's R1), height and width
+// the canopy's true 3D extents: the same definitions treemetrics uses.
+#include "treestereo/calibration.hpp"
+#include "treestereo/scene.hpp"
+#include "treestereo/stats.hpp"
+
+#include <gst/app/gstappsink.h>
+#include <gst/gst.h>
+#include <gst/treestereo/treestereo-meta.h>
+#include <glib/gstdio.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+using namespace treestereo;
+
+namespace {
+
+struct Config {
+  cv::Size size;
+  double distance_m;
+  std::uint64_t seed;
+  double light;
+};
+
+struct Result {
+  Config c;
+  int frame = 0;
+  bool present = false;
+  double distance = 0, height = 0, width = 0, thickness = 0;
+  double t_distance = 0, t_height = 0, t_width = 0, t_thickness = 0;
+  unsigned points = 0, clipped = 0;
+  double ms_per_frame = 0;
+};
+
+std::vector<double> parse_list(const std::string &s)
+{
+  std::vector<double> v;
+  if (s.find(':') != std::string::npos) {
+    double a, b, step;
+    if (std::sscanf(s.c_str(), "%lf:%lf:%lf", &a, &b, &step) == 3 && step > 0)
+      for (int i = 0; a + i * step <= b + 1e-9; i++)
+        v.push_back(a + i * step);
+    return v;
+  }
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    v.push_back(std::stod(item));
+  return v;
+}
+
+std::vector<cv::Size> parse_sizes(const std::string &s)
+{
+  std::vector<cv::Size> v;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    int w, h;
+    if (std::sscanf(item.c_str(), "%dx%d", &w, &h) == 2)
+      v.emplace_back(w, h);
+  }
+  return v;
+}
+
+SceneParams scene_of(const Config &c)
+{
+  SceneParams p;
+  p.image_size = c.size;
+  p.distance_mm = c.distance_m * 1000.0;
+  p.seed = c.seed;
+  p.light = c.light;
+  return p;
+}
+
+std::vector<Result> run_config(const Config &c, int frames, const std::string &calib)
+{
+  char desc[2048];
+  std::snprintf(desc, sizeof desc,
+                "stereorectify name=r calibration=%s ! exgsegment ! siftmatch ! stereodepth ! "
+                "treemetrics post-messages=false ! appsink name=out sync=false "
+                "treetestsrc view=left seed=%llu distance=%g light=%g num-buffers=%d "
+                "truth-maps=false ! video/x-raw,format=RGB,width=%d,height=%d ! r.left "
+                "treetestsrc view=right seed=%llu distance=%g light=%g num-buffers=%d "
+                "truth-maps=false ! video/x-raw,format=RGB,width=%d,height=%d ! r.right",
+                calib.c_str(), (unsigned long long)c.seed, c.distance_m, c.light, frames,
+                c.size.width, c.size.height, (unsigned long long)c.seed, c.distance_m, c.light,
+                frames, c.size.width, c.size.height);
+  GError *err = nullptr;
+  GstElement *p = gst_parse_launch(desc, &err);
+  if (!p || err)
+    throw std::runtime_error(std::string("pipeline: ") + (err ? err->message : "?"));
+  GstElement *sink = gst_bin_get_by_name(GST_BIN(p), "out");
+  const gint64 t0 = g_get_monotonic_time();
+  gst_element_set_state(p, GST_STATE_PLAYING);
+
+  SceneRenderer renderer(scene_of(c)); // for the truth, in the same frames
+  std::vector<Result> out;
+  while (GstSample *s = gst_app_sink_try_pull_sample(GST_APP_SINK(sink), 120 * GST_SECOND)) {
+    GstBuffer *buf = gst_sample_get_buffer(s);
+    Result r;
+    r.c = c;
+    r.frame = int(out.size());
+    const GstTreeStereoGeometryMeta *g = gst_buffer_get_tree_stereo_geometry_meta(buf);
+    const GstTreeStereoMetricsMeta *m = gst_buffer_get_tree_stereo_metrics_meta(buf);
+    if (g && m && m->metrics.tree_present) {
+      r.present = true;
+      r.distance = m->metrics.distance_m;
+      r.height = m->metrics.height_m;
+      r.width = m->metrics.width_m;
+      r.thickness = m->metrics.thickness_m;
+      r.points = m->metrics.n_points;
+      r.clipped = m->metrics.clipped;
+    }
+    cv::Mat rgb;
+    GroundTruth t;
+    renderer.render(0, std::uint64_t(r.frame), rgb, &t);
+    cv::Matx33d R1 = cv::Matx33d::eye();
+    if (g)
+      for (int i = 0; i < 9; i++)
+        R1.val[i] = g->R1[i];
+    const GroundTruth tr = truth_in_frame(t, R1);
+    r.t_distance = tr.distance_m;
+    r.t_thickness = tr.thickness_m;
+    r.t_height = tr.canopy_height_m;
+    r.t_width = tr.canopy_width_m;
+    out.push_back(r);
+    gst_sample_unref(s);
+  }
+  GstBus *bus = gst_element_get_bus(p);
+  if (GstMessage *msg = gst_bus_pop_filtered(bus, GST_MESSAGE_ERROR)) {
+    GError *e = nullptr;
+    gst_message_parse_error(msg, &e, nullptr);
+    std::fprintf(stderr, "bench-accuracy: %s\n", e->message);
+    g_error_free(e);
+    gst_message_unref(msg);
+  }
+  gst_object_unref(bus);
+  const double ms = (g_get_monotonic_time() - t0) / 1000.0;
+  for (Result &r : out)
+    r.ms_per_frame = ms / std::max<size_t>(1, out.size());
+  gst_element_set_state(p, GST_STATE_NULL);
+  gst_object_unref(sink);
+  gst_object_unref(p);
+  return out;
+}
+
+struct Errors {
+  std::vector<double> d, d_rel, h_rel, w_rel, t_rel;
+  int frames = 0, present = 0, clipped = 0;
+  void add(const Result &r)
+  {
+    frames++;
+    if (!r.present)
+      return;
+    present++;
+    if (r.clipped)
+      clipped++;
+    d.push_back(r.distance - r.t_distance);
+    d_rel.push_back((r.distance - r.t_distance) / r.t_distance);
+    if (!r.clipped) {
+      h_rel.push_back((r.height - r.t_height) / r.t_height);
+      w_rel.push_back((r.width - r.t_width) / r.t_width);
+    }
+    t_rel.push_back((r.thickness - r.t_thickness) / r.t_thickness);
+  }
+};
+
+std::string pct(const std::vector<double> &v, bool abs_median = false)
+{
+  if (v.empty())
+    return "-";
+  Summary s = summarize(v);
+  char b[64];
+  if (abs_median) {
+    std::vector<double> a;
+    for (double x : v)
+      a.push_back(std::abs(x));
+    std::snprintf(b, sizeof b, "%+.2f / %.2f", 100 * s.mean, 100 * median(a));
+  } else {
+    std::snprintf(b, sizeof b, "%+.2f ± %.2f", 100 * s.mean, 100 * s.stddev);
+  }
+  return b;
+}
+
+} // namespace
+
+int main(int argc, char **argv)
+{
+  if (!g_getenv("GST_PLUGIN_PATH_1_0") && !g_getenv("GST_PLUGIN_PATH"))
+    g_setenv("GST_PLUGIN_PATH_1_0", TREESTEREO_PLUGIN_BUILD_DIR, TRUE);
+  gst_init(&argc, &argv);
+  std::string sizes = "1296x972,2592x1944", distances = "1.5:2.5:0.1", seeds = "1,2,3",
+              lights = "0.7,1.0,1.3", csv;
+  int frames = 1;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i], v = argv[i + 1];
+    if (a == "--sizes")
+      sizes = v;
+    else if (a == "--distances")
+      distances = v;
+    else if (a == "--seeds")
+      seeds = v;
+    else if (a == "--lights")
+      lights = v;
+    else if (a == "--frames")
+      frames = std::stoi(v);
+    else if (a == "--csv")
+      csv = v;
+    else {
+      std::fprintf(stderr, "bench-accuracy: unknown option %s\n", a.c_str());
+      return 2;
+    }
+  }
+  std::vector<Result> all;
+  gchar *dir = g_dir_make_tmp("bench-accuracy-XXXXXX", nullptr);
+  for (const cv::Size &size : parse_sizes(sizes)) {
+    SceneParams p;
+    p.image_size = size;
+    const std::string calib = std::string(dir) + "/rig.yml";
+    save_calibration(rig_calibration(p), calib);
+    for (double d : parse_list(distances))
+      for (double s : parse_list(seeds))
+        for (double l : parse_list(lights)) {
+          Config c{size, d, std::uint64_t(s), l};
+          std::vector<Result> r = run_config(c, frames, calib);
+          for (const Result &x : r)
+            std::fprintf(stderr,
+                         "%dx%d d=%.1f seed=%llu light=%.1f: %s distance %.4f (truth %.4f) "
+                         "height %.3f (%.3f) width %.3f (%.3f) thickness %.3f (%.3f) %u pts "
+                         "%.0f ms\n",
+                         size.width, size.height, d, (unsigned long long)c.seed, l,
+                         x.present ? "tree" : "NO TREE", x.distance, x.t_distance, x.height,
+                         x.t_height, x.width, x.t_width, x.thickness, x.t_thickness, x.points,
+                         x.ms_per_frame);
+          all.insert(all.end(), r.begin(), r.end());
+        }
+    g_unlink(calib.c_str());
+  }
+  g_rmdir(dir);
+  g_free(dir);
+
+  if (!csv.empty()) {
+    std::ofstream f(csv);
+    f << "width,height,distance_set_m,seed,light,frame,present,distance_m,truth_distance_m,"
+         "height_m,truth_height_m,width_m,truth_width_m,thickness_m,truth_thickness_m,points,"
+         "clipped\n";
+    for (const Result &r : all)
+      f << r.c.size.width << ',' << r.c.size.height << ',' << r.c.distance_m << ',' << r.c.seed
+        << ',' << r.c.light << ',' << r.frame << ',' << r.present << ',' << r.distance << ','
+        << r.t_distance << ',' << r.height << ',' << r.t_height << ',' << r.width << ','
+        << r.t_width << ',' << r.thickness << ',' << r.t_thickness << ',' << r.points << ','
+        << r.clipped << '\n';
+  }
+
+  // Paper-style table: per size and set distance, the distance error over seeds and lights.
+  std::printf("### Distance error by trunk distance\n\n");
+  std::printf("| size | trunk distance (m) | frames | tree found | distance error mean (cm) | "
+              "std (cm) | height err %% | width err %% | thickness err %% | clipped |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+  std::map<std::pair<int, int>, Errors> by_size_near; // 1.8-2.2 m
+  std::map<std::pair<int, long>, Errors> by_row;
+  for (const Result &r : all) {
+    by_row[{r.c.size.width, std::lround(r.c.distance_m * 10)}].add(r);
+    if (r.c.distance_m > 1.75 && r.c.distance_m < 2.25)
+      by_size_near[{r.c.size.width, r.c.size.height}].add(r);
+  }
+  for (auto &[key, e] : by_row) {
+    Summary d = summarize(e.d);
+    std::printf("| %d wide | %.1f | %d | %d | %+.2f | %.2f | %s | %s | %s | %d |\n", key.first,
+                key.second / 10.0, e.frames, e.present, 100 * d.mean, 100 * d.stddev,
+                pct(e.h_rel).c_str(), pct(e.w_rel).c_str(), pct(e.t_rel).c_str(), e.clipped);
+  }
+  std::printf("\n### Summary at 1.8-2.2 m (the paper's range)\n\n");
+  std::printf("| size | frames | tree found | distance std (cm) | distance bias %% | height err "
+              "%% (mean / median abs) | width err %% (mean / median abs) | thickness err %% "
+              "(mean / median abs) |\n|---|---|---|---|---|---|---|---|\n");
+  for (auto &[key, e] : by_size_near) {
+    Summary d = summarize(e.d), dr = summarize(e.d_rel);
+    std::printf("| %dx%d | %d | %d | %.2f | %+.2f | %s | %s | %s |\n", key.first, key.second,
+                e.frames, e.present, 100 * d.stddev, 100 * dr.mean, pct(e.h_rel, true).c_str(),
+                pct(e.w_rel, true).c_str(), pct(e.t_rel, true).c_str());
+  }
+  return 0;
+}
