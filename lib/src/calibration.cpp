@@ -114,6 +114,28 @@ cv::FileStorage open_for_reading(const std::string &file)
   return fs;
 }
 
+// OpenCV's reader allocates rows x cols from the file before it counts the data, so a corrupt
+// size asks for gigabytes (found by fuzzing: "cols: `3" read as a huge number). Calibration
+// matrices are small: check the header first.
+constexpr int kMaxMatrixSide = 16;
+
+void check_matrix_node(const cv::FileNode &node, const std::string &file, const std::string &key)
+{
+  if (!node.isMap() || !node["rows"].isInt() || !node["cols"].isInt() || !node["data"].isSeq())
+    throw CalibrationError(file, key, "is not an opencv-matrix (expected integer rows and cols, "
+                                      "dt, and a data list)");
+  const int rows = static_cast<int>(node["rows"]), cols = static_cast<int>(node["cols"]);
+  if (rows < 1 || cols < 1 || rows > kMaxMatrixSide || cols > kMaxMatrixSide)
+    throw CalibrationError(file, key, "is " + std::to_string(rows) + "x" + std::to_string(cols) +
+                                          ": a calibration matrix has 1 to " +
+                                          std::to_string(kMaxMatrixSide) + " rows and columns");
+  const std::size_t n = node["data"].size();
+  if (n % (static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols)) != 0 || n == 0)
+    throw CalibrationError(file, key, "rows x cols = " + std::to_string(rows) + "x" +
+                                          std::to_string(cols) + " but data has " +
+                                          std::to_string(n) + " values");
+}
+
 // Reads an opencv-matrix node as CV_64F. Missing key: empty Mat when optional, else an error.
 cv::Mat read_matrix(const cv::FileStorage &fs, const std::string &file, const std::string &key,
                     bool required)
@@ -124,6 +146,7 @@ cv::Mat read_matrix(const cv::FileStorage &fs, const std::string &file, const st
       throw CalibrationError(file, key, "missing key");
     return {};
   }
+  check_matrix_node(node, file, key);
   cv::Mat m;
   try {
     node >> m;

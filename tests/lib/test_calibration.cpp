@@ -427,3 +427,22 @@ TEST(CalibrationErrors, NumbersBeyondIntRange)
   write_text(dir.file("big.yml"), text.replace(text.find(width), width.size(), "image_width: 1e20"));
   expect_error([&] { load_calibration(dir.file("big.yml")); }, "big.yml", "image_width", "out of range");
 }
+
+// Found by fuzzing: OpenCV allocates rows x cols before reading the data, so a corrupt size
+// asked for 48 GB. The header is checked first.
+TEST(CalibrationErrors, MatrixSizeFromTheFileIsBounded)
+{
+  TempDir dir;
+  write_opencv(dir.file("good.yml"), make_rig());
+  std::ifstream in(dir.file("good.yml"));
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto m2 = text.find("M2:");
+  const auto cols = text.find("cols: 3", m2);
+  ASSERT_NE(cols, std::string::npos);
+  write_text(dir.file("huge.yml"), std::string(text).replace(cols, 7, "cols: 400000000"));
+  expect_error([&] { load_calibration(dir.file("huge.yml")); }, "huge.yml", "M2", "rows and columns");
+  write_text(dir.file("word.yml"), std::string(text).replace(cols, 7, "cols: three"));
+  expect_error([&] { load_calibration(dir.file("word.yml")); }, "word.yml", "M2", "integer rows and cols");
+  write_text(dir.file("short.yml"), std::string(text).replace(cols, 7, "cols: 4"));
+  expect_error([&] { load_calibration(dir.file("short.yml")); }, "short.yml", "M2", "data has 9 values");
+}
