@@ -28,7 +28,7 @@ for t in "${targets[@]}"; do ninja_targets+=("tests/fuzz/fuzz-$t"); done
 meson compile -C "$build" "${ninja_targets[@]}" || exit 1
 echo "fuzz build: $(( $(date +%s) - t0 )) s"
 
-export ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:detect_odr_violation=0:fast_unwind_on_malloc=0"
+export ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:detect_odr_violation=0:fast_unwind_on_malloc=0:malloc_context_size=128"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 export LSAN_OPTIONS="suppressions=$root/tests/sanitizers/lsan.supp:print_suppressions=0"
 status=0
