@@ -16,6 +16,8 @@ packages=(
   libaravis-0.8-0 aravis-tools
   # tests: memcheck, and the fake camera's loopback address
   valgrind iproute2
+  # fuzzing (scripts/fuzz.sh): clang and its libFuzzer + sanitizer runtimes
+  clang libclang-rt-14-dev
 )
 
 missing=()

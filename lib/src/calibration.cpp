@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -55,6 +56,11 @@ std::string trim(const std::string &s)
 // person what went wrong.
 std::string read_checked(const std::string &file)
 {
+  // An ifstream opens a directory without complaint and then reads nothing, which would be
+  // reported as "file is empty".
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec))
+    throw CalibrationError(file, "", "is a directory, not a calibration file");
   std::ifstream in(file, std::ios::binary);
   if (!in)
     throw CalibrationError(file, "", "file is missing or cannot be read");
@@ -108,6 +114,28 @@ cv::FileStorage open_for_reading(const std::string &file)
   return fs;
 }
 
+// OpenCV's reader allocates rows x cols from the file before it counts the data, so a corrupt
+// size asks for gigabytes (found by fuzzing: "cols: `3" read as a huge number). Calibration
+// matrices are small: check the header first.
+constexpr int kMaxMatrixSide = 16;
+
+void check_matrix_node(const cv::FileNode &node, const std::string &file, const std::string &key)
+{
+  if (!node.isMap() || !node["rows"].isInt() || !node["cols"].isInt() || !node["data"].isSeq())
+    throw CalibrationError(file, key, "is not an opencv-matrix (expected integer rows and cols, "
+                                      "dt, and a data list)");
+  const int rows = static_cast<int>(node["rows"]), cols = static_cast<int>(node["cols"]);
+  if (rows < 1 || cols < 1 || rows > kMaxMatrixSide || cols > kMaxMatrixSide)
+    throw CalibrationError(file, key, "is " + std::to_string(rows) + "x" + std::to_string(cols) +
+                                          ": a calibration matrix has 1 to " +
+                                          std::to_string(kMaxMatrixSide) + " rows and columns");
+  const std::size_t n = node["data"].size();
+  if (n % (static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols)) != 0 || n == 0)
+    throw CalibrationError(file, key, "rows x cols = " + std::to_string(rows) + "x" +
+                                          std::to_string(cols) + " but data has " +
+                                          std::to_string(n) + " values");
+}
+
 // Reads an opencv-matrix node as CV_64F. Missing key: empty Mat when optional, else an error.
 cv::Mat read_matrix(const cv::FileStorage &fs, const std::string &file, const std::string &key,
                     bool required)
@@ -118,6 +146,7 @@ cv::Mat read_matrix(const cv::FileStorage &fs, const std::string &file, const st
       throw CalibrationError(file, key, "missing key");
     return {};
   }
+  check_matrix_node(node, file, key);
   cv::Mat m;
   try {
     node >> m;
@@ -134,6 +163,15 @@ cv::Mat read_matrix(const cv::FileStorage &fs, const std::string &file, const st
   return d;
 }
 
+// A count or size read as a double: converting an out-of-range or NaN double to int is
+// undefined behaviour, so such values are refused first (found by fuzzing).
+int checked_int(double v, const std::string &file, const std::string &key)
+{
+  if (!(v >= -1e9 && v <= 1e9))
+    throw CalibrationError(file, key, "value out of range (|value| must be below 1e9)");
+  return static_cast<int>(v);
+}
+
 int read_int(const cv::FileStorage &fs, const std::string &file, const std::string &key)
 {
   const cv::FileNode node = fs[key];
@@ -141,7 +179,7 @@ int read_int(const cv::FileStorage &fs, const std::string &file, const std::stri
     return 0;
   if (!node.isInt() && !node.isReal())
     throw CalibrationError(file, key, "must be a number");
-  return static_cast<int>(node.real());
+  return checked_int(node.real(), file, key);
 }
 
 // image_width/image_height, or an empty size when both are absent.
@@ -223,8 +261,8 @@ cv::Mat read_ros_matrix(const cv::FileStorage &fs, const std::string &file, cons
     throw CalibrationError(file, key, "missing key");
   if (!node.isMap() || node["data"].empty())
     throw CalibrationError(file, key, "expected a ROS matrix {rows, cols, data}");
-  const int r = node["rows"].empty() ? rows : static_cast<int>(node["rows"].real());
-  const int k = node["cols"].empty() ? cols : static_cast<int>(node["cols"].real());
+  const int r = node["rows"].empty() ? rows : checked_int(node["rows"].real(), file, key + ".rows");
+  const int k = node["cols"].empty() ? cols : checked_int(node["cols"].real(), file, key + ".cols");
   const cv::FileNode data = node["data"];
   if (!data.isSeq())
     throw CalibrationError(file, key, "data must be a list of numbers");

@@ -4,7 +4,9 @@
 #include <gst/video/video.h>
 #include <gst/treestereo/treestereo-meta.h>
 
+#include <glib/gstdio.h>
 #include <string.h>
+#include <unistd.h>
 
 #define W 648
 #define H 486
@@ -271,6 +273,175 @@ GST_START_TEST (test_missing_calibration_fails_state_change)
 
 GST_END_TEST;
 
+/* ---- Bad calibration files: READY->PAUSED fails with an error naming the file and problem */
+
+/* The example calibration's text with the first @from replaced by @to (@from must occur). */
+static gchar *
+example_text_with (const gchar * from, const gchar * to)
+{
+  gchar *path = example_calibration (), *text = NULL, *at, *out;
+  gsize len = 0;
+
+  fail_unless (g_file_get_contents (path, &text, &len, NULL), "cannot read %s", path);
+  g_free (path);
+  if (from == NULL)
+    return text;
+  at = strstr (text, from);
+  fail_unless (at != NULL, "'%s' not in the example calibration", from);
+  *at = '\0';
+  out = g_strconcat (text, to, at + strlen (from), NULL);
+  g_free (text);
+  return out;
+}
+
+/* Sets @spec as calibration, expects READY->PAUSED to fail and an ERROR whose text holds
+ * @file and @problem. */
+static void
+expect_calibration_error (const gchar * spec, const gchar * file, const gchar * problem)
+{
+  GstElement *e = gst_element_factory_make ("stereorectify", NULL);
+  GstBus *bus = gst_bus_new ();
+  GstMessage *msg;
+  GError *err = NULL;
+  gchar *dbg = NULL;
+
+  gst_element_set_bus (e, bus);
+  g_object_set (e, "calibration", spec, NULL);
+  fail_unless_equals_int (gst_element_set_state (e, GST_STATE_READY), GST_STATE_CHANGE_SUCCESS);
+  fail_unless_equals_int (gst_element_set_state (e, GST_STATE_PAUSED),
+      GST_STATE_CHANGE_FAILURE);
+  msg = gst_bus_pop_filtered (bus, GST_MESSAGE_ERROR);
+  fail_unless (msg != NULL, "no error message for %s", spec);
+  gst_message_parse_error (msg, &err, &dbg);
+  GST_INFO ("%s -> %s", spec, err->message);
+  fail_unless (g_error_matches (err, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS),
+      "%s: not a RESOURCE/SETTINGS error: %s", spec, err->message);
+  fail_unless (strstr (err->message, file) != NULL, "file %s not named: %s", file,
+      err->message);
+  fail_unless (strstr (err->message, problem) != NULL, "problem '%s' not named: %s", problem,
+      err->message);
+  g_error_free (err);
+  g_free (dbg);
+  gst_message_unref (msg);
+  fail_unless_equals_int (gst_element_set_state (e, GST_STATE_NULL), GST_STATE_CHANGE_SUCCESS);
+  gst_element_set_bus (e, NULL);
+  gst_object_unref (bus);
+  gst_object_unref (e);
+}
+
+/* Writes @len bytes of @text (-1: all) to @name in @dir and checks the element refuses it. */
+static void
+expect_file_error (const gchar * dir, const gchar * name, const gchar * text, gssize len,
+    const gchar * problem)
+{
+  gchar *path = g_build_filename (dir, name, NULL);
+
+  fail_unless (g_file_set_contents (path, text, len, NULL));
+  expect_calibration_error (path, path, problem);
+  g_unlink (path);
+  g_free (path);
+}
+
+GST_START_TEST (test_bad_calibration_files_fail_state_change)
+{
+  gchar *dir = g_dir_make_tmp ("treestereo-badcalib-XXXXXX", NULL);
+  gchar *text, *missing, *subdir;
+  static const guint8 png[] = { 0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 0, 0, 0, 13 };
+
+  fail_unless (dir != NULL);
+  /* missing, and a directory where a file should be */
+  missing = g_build_filename (dir, "absent.yml", NULL);
+  expect_calibration_error (missing, missing, "missing or cannot be read");
+  g_free (missing);
+  subdir = g_build_filename (dir, "adir.yml", NULL);
+  fail_unless (g_mkdir (subdir, 0700) == 0);
+  expect_calibration_error (subdir, subdir, "is a directory");
+  g_rmdir (subdir);
+  g_free (subdir);
+
+  /* empty, truncated inside a matrix, an image, text that is not YAML */
+  expect_file_error (dir, "empty.yml", "", 0, "file is empty");
+  text = example_text_with (NULL, NULL);
+  expect_file_error (dir, "truncated.yml", text, strstr (text, "3503.12") - text + 4,
+      "not a valid OpenCV YAML/XML file");
+  expect_file_error (dir, "cut-before-T.yml", text, strstr (text, "\nT:") - text,
+      "T: missing key");
+  g_free (text);
+  expect_file_error (dir, "image.yml", (const gchar *) png, sizeof png, "this is an image");
+  expect_file_error (dir, "words.yml", "just some words\n", -1, "not a valid OpenCV");
+  expect_file_error (dir, "calib.xml", "<?xml version=\"1.0\"?>\n<opencv_storage>\n<M1>",
+      -1, "not a valid OpenCV YAML/XML file");
+
+  /* well-formed files with impossible values */
+  text = example_text_with ("3503.12", ".nan");
+  expect_file_error (dir, "nan.yml", text, -1, "M1: holds a non-finite value");
+  g_free (text);
+  text = example_text_with ("[ -50., 0., 0. ]", "[ -50., .inf, 0. ]");
+  expect_file_error (dir, "inf.yml", text, -1, "T: holds a non-finite value");
+  g_free (text);
+  text = example_text_with ("0.999993555008", "0.5");
+  expect_file_error (dir, "not-rotation.yml", text, -1, "R: is not a rotation matrix");
+  g_free (text);
+  text = example_text_with ("[ -50., 0., 0. ]", "[ 0., 0., 0. ]");
+  expect_file_error (dir, "zero-baseline.yml", text, -1, "T: zero baseline");
+  g_free (text);
+  text = example_text_with ("rows: 3\n   cols: 3", "rows: 2\n   cols: 3");
+  expect_file_error (dir, "shape.yml", text, -1, "M1");
+  g_free (text);
+  text = example_text_with ("image_width: 2592\nimage_height: 1944\n", "");
+  expect_file_error (dir, "no-size.yml", text, -1, "image size missing");
+  g_free (text);
+
+  /* a pair whose first file is missing: named, not the second */
+  missing = g_build_filename (dir, "absent-left.yaml", NULL);
+  {
+    gchar *right = g_build_filename (dir, "right.yaml", NULL);
+    text = g_strconcat (missing, ";", right, NULL);
+    fail_unless (g_file_set_contents (right, "image_width: 640\nimage_height: 480\n", -1, NULL));
+    expect_calibration_error (text, "absent-left.yaml", "missing or cannot be read");
+    g_unlink (right);
+    g_free (right);
+  }
+  g_free (text);
+  g_free (missing);
+
+  /* unreadable: only meaningful when not root (root reads anything) */
+  if (geteuid () != 0) {
+    gchar *path = g_build_filename (dir, "unreadable.yml", NULL);
+    text = example_text_with (NULL, NULL);
+    fail_unless (g_file_set_contents (path, text, -1, NULL));
+    fail_unless (g_chmod (path, 0) == 0);
+    expect_calibration_error (path, path, "missing or cannot be read");
+    g_unlink (path);
+    g_free (path);
+    g_free (text);
+  }
+  g_rmdir (dir);
+  g_free (dir);
+}
+
+GST_END_TEST;
+
+/* A calibration that is fine in itself but for another camera: refused when caps arrive, naming
+ * both sizes (a 4:3 calibration cannot be scaled to 16:9). */
+GST_START_TEST (test_calibration_for_other_aspect_fails_at_caps)
+{
+  Rig rig;
+  gchar *text;
+
+  rig_setup (&rig, "RGB", 1280, 720, 1280, 720, TRUE);
+  gst_harness_push (rig.left, frame (1280, 720, 3, 1, 0));
+  gst_harness_push (rig.right, frame (1280, 720, 3, 1, 0));
+  text = wait_error (rig.bus);
+  fail_unless (strstr (text, "2592x1944") != NULL && strstr (text, "1280x720") != NULL,
+      "both sizes not named: %s", text);
+  fail_unless (strstr (text, "calibration-mer500.yml") != NULL, "file not named: %s", text);
+  g_free (text);
+  rig_teardown (&rig);
+}
+
+GST_END_TEST;
+
 GST_START_TEST (test_passthrough_keeps_pixels)
 {
   Rig rig;
@@ -321,6 +492,8 @@ stereorectify_suite (void)
   tcase_add_test (tc, test_left_right_differ);
   tcase_add_test (tc, test_missing_calibration_fails_state_change);
   tcase_add_test (tc, test_passthrough_keeps_pixels);
+  tcase_add_test (tc, test_bad_calibration_files_fail_state_change);
+  tcase_add_test (tc, test_calibration_for_other_aspect_fails_at_caps);
   return s;
 }
 

@@ -344,6 +344,9 @@ TEST(CalibrationErrors, FileMissing)
   TempDir dir;
   expect_error([&] { load_calibration(dir.file("nothere.yml")); }, "nothere.yml", "", "missing");
   expect_error([&] { load_calibration(dir.file("a.yaml") + ";" + dir.file("b.yaml")); }, "a.yaml", "", "missing");
+  // A directory opens as a stream that reads nothing: it must not be called "empty".
+  fs::create_directories(dir.file("calib.yml"));
+  expect_error([&] { load_calibration(dir.file("calib.yml")); }, "calib.yml", "", "is a directory");
 }
 
 TEST(CalibrationErrors, WrongFormat)
@@ -400,4 +403,46 @@ TEST(Calibration, ScalesOnlyByAPureScale)
   // 2592x1944 binned 3x: exactly 864x648; rounding to 865x649 is still within half a pixel.
   EXPECT_NO_THROW(scale_calibration(big, {864, 648}));
   EXPECT_NO_THROW(scale_calibration(big, {865, 649}));
+}
+
+// Found by fuzzing: sizes and matrix dimensions far outside int were cast to int (undefined
+// behaviour). They are refused with the key named.
+TEST(CalibrationErrors, NumbersBeyondIntRange)
+{
+  TempDir dir;
+  StereoCalibration rig = make_rig();
+  add_rectification(rig);
+  std::string left = ros_camera("left", rig.image_size, rig.M1, rig.D1, rig.R1, rig.P1);
+  write_text(dir.file("right.yaml"), ros_camera("right", rig.image_size, rig.M2, rig.D2, rig.R2, rig.P2));
+  const std::string rows = "camera_matrix:\n  rows: 3";
+  write_text(dir.file("left.yaml"), std::string(left).replace(left.find(rows), rows.size(),
+                                                             "camera_matrix:\n  rows: 1e300"));
+  expect_error([&] { load_calibration(dir.file("left.yaml") + ";" + dir.file("right.yaml")); },
+               "left.yaml", "camera_matrix.rows", "out of range");
+  write_opencv(dir.file("good.yml"), rig);
+  std::ifstream in(dir.file("good.yml"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string width = "image_width: 640";
+  ASSERT_NE(text.find(width), std::string::npos);
+  write_text(dir.file("big.yml"), text.replace(text.find(width), width.size(), "image_width: 1e20"));
+  expect_error([&] { load_calibration(dir.file("big.yml")); }, "big.yml", "image_width", "out of range");
+}
+
+// Found by fuzzing: OpenCV allocates rows x cols before reading the data, so a corrupt size
+// asked for 48 GB. The header is checked first.
+TEST(CalibrationErrors, MatrixSizeFromTheFileIsBounded)
+{
+  TempDir dir;
+  write_opencv(dir.file("good.yml"), make_rig());
+  std::ifstream in(dir.file("good.yml"));
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto m2 = text.find("M2:");
+  const auto cols = text.find("cols: 3", m2);
+  ASSERT_NE(cols, std::string::npos);
+  write_text(dir.file("huge.yml"), std::string(text).replace(cols, 7, "cols: 400000000"));
+  expect_error([&] { load_calibration(dir.file("huge.yml")); }, "huge.yml", "M2", "rows and columns");
+  write_text(dir.file("word.yml"), std::string(text).replace(cols, 7, "cols: three"));
+  expect_error([&] { load_calibration(dir.file("word.yml")); }, "word.yml", "M2", "integer rows and cols");
+  write_text(dir.file("short.yml"), std::string(text).replace(cols, 7, "cols: 4"));
+  expect_error([&] { load_calibration(dir.file("short.yml")); }, "short.yml", "M2", "data has 9 values");
 }

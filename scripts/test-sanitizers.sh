@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Builds treestereo with AddressSanitizer + UndefinedBehaviorSanitizer in build-asan/ and runs
+# the whole test suite there. Any leak (outside the one-time allocations suppressed in
+# tests/sanitizers/lsan.supp), any invalid access and any undefined behaviour fails the test
+# that hit it. Extra arguments go to `meson test` (e.g. a test name, --suite lib).
+#   TREESTEREO_ASAN_BUILD_DIR  build directory (default build-asan)
+set -uo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
+build=${TREESTEREO_ASAN_BUILD_DIR:-build-asan}
+
+bash scripts/deps.sh || exit 1
+if [ ! -f "$build/build.ninja" ]; then
+  # b_lundef=false: a plugin built with ASan leaves the runtime's symbols for the executable
+  # (or LD_PRELOAD) to provide. No benchmarks: they are never run by the tests.
+  meson setup "$build" -Dwerror=true -Db_sanitize=address,undefined -Db_lundef=false \
+    -Dbench=disabled || exit 1
+fi
+meson compile -C "$build" || exit 1
+
+# The plugin carries ASan instrumentation, so every process that loads it must have the ASan
+# runtime first: the test programs are built with it; gst-launch-1.0, gst-inspect-1.0 and
+# gst-plugin-scanner (run by script tests) are not, hence the preload. UBSan's runtime is
+# linked into the instrumented binaries (libubsan is preloaded too for the stock tools).
+libasan=$(gcc -print-file-name=libasan.so)
+libubsan=$(gcc -print-file-name=libubsan.so)
+export TREESTEREO_SANITIZER_PRELOAD="$libasan:$libubsan"
+# Registries are built by gst-plugin-scanner, which is not instrumented: a wrapper preloads the
+# runtimes into it (and keeps the system plugins' one-time leaks out of the tests' processes).
+export TREESTEREO_REAL_PLUGIN_SCANNER="$(pkg-config --variable=pluginscannerdir gstreamer-1.0)/gst-plugin-scanner"
+export GST_PLUGIN_SCANNER_1_0="$root/tests/sanitizers/gst-plugin-scanner-asan.sh"
+export ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:halt_on_error=1:detect_odr_violation=0:strict_string_checks=0:check_initialization_order=1:fast_unwind_on_malloc=0"
+export LSAN_OPTIONS="suppressions=$root/tests/sanitizers/lsan.supp:print_suppressions=0"
+export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
+
+start=$(date +%s)
+# install-pkgconfig builds an uninstrumented consumer against the instrumented meta library (the
+# runtime cannot come first there); it checks packaging, which the normal build covers.
+meson test -C "$build" --print-errorlogs --num-processes 2 --timeout-multiplier 4 \
+  --no-suite install "$@"
+status=$?
+echo "sanitizer test run: $(( $(date +%s) - start )) s, exit status $status"
+exit $status
