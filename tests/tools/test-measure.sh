@@ -1,0 +1,97 @@
+#!/usr/bin/env bash
+# treestereo-measure end to end, as the README's main command runs it:
+#  1. the synthetic default: one JSON object per frame with DESIGN.md's fields, a CSV row per
+#     frame, and an MP4 that decodes to exactly as many frames; distances near the truth;
+#  2. the committed image sequences with their calibration;
+#  3. usage errors exit 2, pipeline errors exit 1 with a message naming the problem;
+#  4. Ctrl-C finishes the files: the recording plays and holds every measured frame.
+# Exit 77 (skipped) when the H.264 encoder/decoder is not installed.
+set -uo pipefail
+measure=${1:?usage: test-measure.sh TREESTEREO_MEASURE}
+src=${TREESTEREO_SOURCE_DIR:?}
+for e in x264enc mp4mux qtdemux h264parse avdec_h264; do
+  gst-inspect-1.0 "$e" >/dev/null 2>&1 || { echo "SKIP: GStreamer element $e is missing"; exit 77; }
+done
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+
+decoded_frames() {
+  gst-launch-1.0 -v filesrc location="$1" ! qtdemux ! h264parse ! avdec_h264 ! \
+    fakesink sync=false silent=false 2>&1 | grep -c 'last-message = chain'
+}
+
+# Checks a JSON-lines file: N lines, frames 0..N-1, every DESIGN.md field, finite numbers, and
+# (with a truth in the line) the distance within TOL of the truth.
+check_json() { # file n tol extra-fields
+  python3 - "$@" <<'PY'
+import json, math, sys
+path, n, tol, extra = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), sys.argv[4].split(",") if len(sys.argv) > 4 and sys.argv[4] else []
+lines = [l for l in open(path) if l.strip()]
+assert len(lines) == n, f"{len(lines)} JSON lines, expected {n}"
+fields = ["distance_m", "height_m", "width_m", "thickness_m", "area_m2", "perimeter_m",
+          "complexity", "centroid_m", "bands", "clipped", "n_points", "n_matches"] + extra
+def finite(v):
+    if isinstance(v, float): return math.isfinite(v)
+    if isinstance(v, list): return all(finite(x) for x in v)
+    if isinstance(v, dict): return all(finite(x) for x in v.values())
+    return True
+for i, l in enumerate(lines):
+    o = json.loads(l)
+    assert o["frame"] == i, f"frame {o['frame']} at line {i}"
+    assert isinstance(o["pts_ns"], int), "pts_ns"
+    assert finite(o), f"non-finite value in frame {i}"
+    assert o["tree_present"] is True, f"no tree in frame {i}"
+    for f in fields:
+        assert f in o, f"field {f} missing in frame {i}"
+    assert len(o["centroid_m"]) == 3 and len(o["bands"]) == 4
+    if "truth" in o:
+        t = o["truth"]["distance_m"]
+        assert abs(o["distance_m"] - t) <= tol * t, f"frame {i}: distance {o['distance_m']} vs truth {t}"
+print(f"{n} JSON lines OK")
+PY
+}
+
+# 1. the synthetic default
+"$measure" --synthetic --frames 6 --size 640x480 --json "$tmp/s.jsonl" --csv "$tmp/s.csv" \
+  --record "$tmp/s.mp4" --points --matches >"$tmp/s.out" 2>&1 || { cat "$tmp/s.out"; fail "synthetic run"; }
+check_json "$tmp/s.jsonl" 6 0.02 points_mm,matches || fail "synthetic JSON"
+[ "$(grep -c '^frame ' "$tmp/s.out")" -eq 6 ] || { cat "$tmp/s.out"; fail "not one summary line per frame"; }
+[ "$(wc -l <"$tmp/s.csv")" -eq 7 ] || fail "CSV should hold a header and 6 rows"
+head -1 "$tmp/s.csv" | grep -q '^frame,pts_ns,tree_present,distance_m' || fail "CSV header"
+n=$(decoded_frames "$tmp/s.mp4")
+[ "$n" -eq 6 ] || fail "the recording decodes to $n frames, expected 6"
+
+# 2. image sequences (the committed fixtures) with their calibration
+fx="$src/tests/fixtures/seq-static"
+"$measure" --left "$fx/left_%04d.jpg" --right "$fx/right_%04d.jpg" --calibration \
+  "$fx/calibration.yml" --json "$tmp/f.jsonl" --quiet >"$tmp/f.out" 2>&1 || { cat "$tmp/f.out"; fail "fixture run"; }
+check_json "$tmp/f.jsonl" 8 1 "" || fail "fixture JSON"
+
+# 3. errors
+"$measure" --left "$fx/left_%04d.jpg" >"$tmp/e.out" 2>&1
+[ $? -eq 2 ] || fail "--left without --right should be a usage error (2)"
+"$measure" --left "$fx/left_%04d.jpg" --right "$fx/right_%04d.jpg" >"$tmp/e.out" 2>&1
+[ $? -eq 2 ] && grep -q -- "--calibration" "$tmp/e.out" || fail "files without --calibration: $(cat "$tmp/e.out")"
+echo "not a calibration" >"$tmp/bad.yml"
+"$measure" --left "$fx/left_%04d.jpg" --right "$fx/right_%04d.jpg" --calibration "$tmp/bad.yml" \
+  --quiet >"$tmp/e.out" 2>&1
+[ $? -eq 1 ] && grep -q "bad.yml" "$tmp/e.out" || fail "bad calibration: $(cat "$tmp/e.out")"
+
+# 4. Ctrl-C: stop a long run after a few frames; the files are finished, not cut
+"$measure" --synthetic --frames 500 --size 640x480 --json "$tmp/c.jsonl" --record "$tmp/c.mp4" \
+  --quiet >"$tmp/c.out" 2>&1 &
+pid=$!
+for _ in $(seq 1 600); do
+  [ -f "$tmp/c.jsonl" ] && [ "$(wc -l <"$tmp/c.jsonl")" -ge 4 ] && break
+  sleep 0.1
+done
+kill -INT $pid
+wait $pid
+rc=$?
+[ $rc -eq 0 ] || { cat "$tmp/c.out"; fail "Ctrl-C exit status $rc, expected 0"; }
+lines=$(wc -l <"$tmp/c.jsonl")
+[ "$lines" -ge 4 ] && [ "$lines" -lt 500 ] || fail "$lines frames measured before Ctrl-C"
+n=$(decoded_frames "$tmp/c.mp4")
+[ "$n" -eq "$lines" ] || fail "after Ctrl-C the recording decodes to $n frames, $lines were measured"
+echo "OK: synthetic 6 frames, fixtures 8 frames, errors, Ctrl-C after $lines frames"
