@@ -14,6 +14,10 @@
 #   PAIR_QUEUE    pairs buffered before the analysis; older pairs are dropped (2)
 #   SINK          where the annotated left view goes  (videoconvert ! autovideosink sync=false)
 #   GST_LAUNCH_FLAGS                                  (-e; tests add -m)
+#   RECORD_DIR    also record into this folder: each camera's raw frames as JPEG
+#                 (left_%05d.jpg, right_%05d.jpg: treestereo-measure --left/--right replays
+#                 them) and the annotated side-by-side video annotated.mp4
+#                 (pipelines/aravis-record.sh sets it)
 #
 # Timing (docs/aravis.md): do-timestamp=true stamps each frame with the pipeline clock when
 # aravissrc hands it over, so a leaky queue right behind each camera keeps that moment the
@@ -34,14 +38,31 @@ pair_queue=${PAIR_QUEUE:-2}
 sink=${SINK:-videoconvert ! autovideosink sync=false}
 camera_queue="queue max-size-buffers=8 max-size-bytes=0 max-size-time=0 leaky=downstream"
 
+record=${RECORD_DIR:-}
+raw_branch() {  # $1 pad name: the camera's frames as JPEG files
+  [ -n "$record" ] || return 0
+  echo "! tee name=raw_$1 ! queue max-size-buffers=16 max-size-bytes=0 max-size-time=0 ! r.$1" \
+       "raw_$1. ! queue max-size-buffers=16 max-size-bytes=0 max-size-time=0 ! videoconvert !" \
+       "jpegenc quality=95 ! multifilesink location=\"$record/$1_%05d.jpg\""
+}
 camera() {  # $1 camera name, $2 stereorectify pad
   echo "aravissrc camera-name=$1 do-timestamp=true num-buffers=$frames ${features:+features=\"$features\"}" \
-       "! $caps ! $camera_queue ! $demosaic ! r.$2"
+       "! $caps ! $camera_queue ! $demosaic"
+  if [ -n "$record" ]; then raw_branch "$2"; else echo "! r.$2"; fi
 }
+if [ -n "$record" ]; then
+  mkdir -p "$record"
+  # the annotated side-by-side video beside what $SINK shows
+  output="treeoverlay ! tee name=shown ! queue ! videoconvert ! video/x-raw,format=I420 ! \
+    x264enc tune=zerolatency speed-preset=veryfast ! h264parse ! mp4mux ! \
+    filesink location=\"$record/annotated.mp4\" shown. ! queue ! $sink"
+else
+  output="treeoverlay views=left ! $sink"
+fi
 
 # shellcheck disable=SC2086,SC2046
 eval exec gst-launch-1.0 ${GST_LAUNCH_FLAGS:--e} \
   stereorectify name=r calibration="\"$CALIBRATION\"" latency=$latency_ns max-skew=$skew_ns ! \
   queue max-size-buffers=$pair_queue max-size-bytes=0 max-size-time=0 leaky=downstream ! \
-  exgsegment ! siftmatch ! stereodepth ! treemetrics ! treeoverlay views=left ! $sink \
+  exgsegment ! siftmatch ! stereodepth ! treemetrics ! $output \
   $(camera "$LEFT_CAMERA" left) $(camera "$RIGHT_CAMERA" right)
