@@ -37,6 +37,7 @@ struct Options {
   gint frames = -1;
   gchar *size = nullptr;
   gdouble fps = 0;
+  gdouble latency_ms = 100, max_skew_ms = 20;
   gint64 seed = 1;
   gdouble distance = 2.0, speed = 0.5, light = 1.0;
   // analysis
@@ -133,7 +134,10 @@ std::string camera_source(const std::string &name, const Options &o)
   s << "aravissrc camera-name=" << quoted(name) << " do-timestamp=true";
   if (o.frames > 0)
     s << " num-buffers=" << o.frames;
-  s << " ! " << caps;
+  // a leaky queue right behind the camera keeps do-timestamp's stamp the frame's arrival
+  // (docs/aravis.md)
+  s << " ! " << caps << " ! queue max-size-buffers=8 max-size-bytes=0 max-size-time=0 "
+    << "leaky=downstream";
   if (caps.rfind("video/x-bayer", 0) == 0)
     s << " ! bayer2rgb";
   s << " ! videoconvert ! video/x-raw,format=RGB";
@@ -418,6 +422,11 @@ std::string build_description(Job &job)
 
   d << "stereorectify name=rect calibration=" << quoted(job.calibration)
     << (o.no_rectify ? " rectify=false" : "");
+  if (o.camera_left) // live: a frame waits this long for its partner; pairs may be this far apart
+    d << " latency=" << gint64(o.latency_ms * GST_MSECOND)
+      << " max-skew=" << gint64(o.max_skew_ms * GST_MSECOND);
+  if (o.camera_left) // live: when the analysis falls behind, the oldest pairs go, not the cameras'
+    d << " ! queue max-size-buffers=8 max-size-bytes=0 max-size-time=0 leaky=downstream";
   d << " ! exgsegment name=seg" << (o.index ? std::string(" index=") + o.index : "");
   d << " ! siftmatch name=match" << (o.method ? std::string(" method=") + o.method : "")
     << (o.scale > 0 ? " scale=" + std::to_string(o.scale) : "") << " min-depth=" << o.min_depth
@@ -468,6 +477,11 @@ int run(int argc, char **argv)
        "Caps for the cameras (default video/x-raw,format=RGB; video/x-bayer,... adds "
        "bayer2rgb)",
        "CAPS"},
+      {"latency", 0, 0, G_OPTION_ARG_DOUBLE, &o.latency_ms,
+       "Cameras: how long a frame waits for its partner, ms (100; at least a frame period)",
+       "MS"},
+      {"max-skew", 0, 0, G_OPTION_ARG_DOUBLE, &o.max_skew_ms,
+       "Cameras: largest time between paired frames, ms (20)", "MS"},
       {"calibration", 'c', 0, G_OPTION_ARG_FILENAME, &o.calibration,
        "Stereo calibration (OpenCV YAML/XML or 'left.yaml;right.yaml')", "FILE"},
       {"no-rectify", 0, 0, G_OPTION_ARG_NONE, &o.no_rectify,
