@@ -2,7 +2,7 @@
 # treestereo-measure end to end, as the README's main command runs it:
 #  1. the synthetic default: one JSON object per frame with DESIGN.md's fields, a CSV row per
 #     frame, and an MP4 that decodes to exactly as many frames; distances near the truth;
-#  2. the committed image sequences with their calibration;
+#  2. the committed image sequences with their calibration, as files and as MP4 videos;
 #  3. usage errors exit 2, pipeline errors exit 1 with a message naming the problem;
 #  4. Ctrl-C finishes the files: the recording plays and holds every measured frame.
 # Exit 77 (skipped) when the H.264 encoder/decoder is not installed.
@@ -68,6 +68,16 @@ fx="$src/tests/fixtures/seq-static"
   "$fx/calibration.yml" --json "$tmp/f.jsonl" --quiet >"$tmp/f.out" 2>&1 || { cat "$tmp/f.out"; fail "fixture run"; }
 check_json "$tmp/f.jsonl" 8 1 "" || fail "fixture JSON"
 
+# 2b. the same captures as video files (H.264 MP4), decoded by decodebin
+for v in left right; do
+  gst-launch-1.0 -q multifilesrc location="$fx/${v}_%04d.jpg" caps="image/jpeg,framerate=7/1" ! \
+    jpegdec ! videoconvert ! video/x-raw,format=I420 ! x264enc tune=zerolatency qp-max=20 ! \
+    h264parse ! mp4mux ! filesink location="$tmp/$v.mp4" || fail "could not encode $v.mp4"
+done
+"$measure" --left "$tmp/left.mp4" --right "$tmp/right.mp4" --calibration "$fx/calibration.yml" \
+  --json "$tmp/v.jsonl" --quiet >"$tmp/v.out" 2>&1 || { cat "$tmp/v.out"; fail "video file run"; }
+check_json "$tmp/v.jsonl" 8 1 "" || fail "video file JSON"
+
 # 3. errors
 "$measure" --left "$fx/left_%04d.jpg" >"$tmp/e.out" 2>&1
 [ $? -eq 2 ] || fail "--left without --right should be a usage error (2)"
@@ -94,4 +104,4 @@ lines=$(wc -l <"$tmp/c.jsonl")
 [ "$lines" -ge 4 ] && [ "$lines" -lt 500 ] || fail "$lines frames measured before Ctrl-C"
 n=$(decoded_frames "$tmp/c.mp4")
 [ "$n" -eq "$lines" ] || fail "after Ctrl-C the recording decodes to $n frames, $lines were measured"
-echo "OK: synthetic 6 frames, fixtures 8 frames, errors, Ctrl-C after $lines frames"
+echo "OK: synthetic 6 frames, fixtures 8 frames as images and as MP4, errors, Ctrl-C after $lines frames"
