@@ -10,9 +10,10 @@
  * The pixels are neither touched nor mapped.
  *
  * Height and width convert the silhouette's angular extent into metres by
- * #treemetrics:extent-method (default `round-canopy`: exact for a canopy that is a solid of
- * revolution about a vertical axis; see lib/include/treestereo/metrics.hpp). Only points that
- * project onto the silhouette count.
+ * #treemetrics:extent-method (default `tangent-points`: each silhouette edge at the depth of
+ * the points where its ray touches the canopy; `round-canopy`: exact for a canopy that is a
+ * solid of revolution about a vertical axis; see lib/include/treestereo/metrics.hpp). Only
+ * points that project onto the silhouette count.
  *
  * When no canopy is found (the vegetation meta says none, no valid point falls on it) the
  * message carries `tree-present=false` and no other figure, and the meta's figures are all 0:
@@ -96,6 +97,9 @@ static GType gst_tree_metrics_extent_get_type(void)
       {int(ExtentDepth::kMidDepth), "At median depth + thickness / 2", "mid-depth"},
       {int(ExtentDepth::kFrontFace), "At the median depth (reads low on a round canopy)",
        "front-face"},
+      {int(ExtentDepth::kTangentPoints),
+       "Each silhouette edge at the depth of the points where its ray touches the canopy",
+       "tangent-points"},
       {0, nullptr, nullptr},
   };
   if (g_once_init_enter(&type)) {

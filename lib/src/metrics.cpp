@@ -24,11 +24,13 @@ void check_input(const Silhouette &s, const StereoGeometry &g, const MetricsPara
     throw std::runtime_error("tree metrics: the silhouette mask must be CV_8U of the view size " +
                              std::to_string(g.view_size.width) + "x" +
                              std::to_string(g.view_size.height));
-  if (p.n_bands < 1 || p.min_band_points < 1 || !(p.near_percentile >= 0.0) ||
+  if (p.n_bands < 1 || p.min_band_points < 1 || !(p.tangent_fraction > 0.0) ||
+      !(p.tangent_fraction <= 0.5) || p.tangent_min_points < 5 || !(p.near_percentile >= 0.0) ||
       !(p.near_percentile <= 50.0) || !(p.edge_fraction > 0.0) || !(p.edge_fraction <= 0.5) ||
       !(p.band_depth_percentile >= 0.0) || !(p.band_depth_percentile <= 100.0))
     throw std::runtime_error("tree metrics: parameters out of range (bands >= 1, min band points "
-                             ">= 1, near percentile in [0, 50], edge fraction in (0, 0.5], band "
+                             ">= 1, near percentile in [0, 50], edge and tangent fraction in (0, "
+                             "0.5], tangent min points >= 5, band "
                              "depth percentile in [0, 100])");
 }
 
@@ -106,8 +108,22 @@ struct Converter {
   bool round = false;
   double z_ext = 0;           // mm: the equivalent conversion depth
   double xc = 0, yc = 0, zc = 0; // mm: the canopy's centre (round) / axis depth
-  double x(double t) const { return round ? xc + (t * zc - xc) / std::hypot(1.0, t) : t * z_ext; }
-  double y(double t) const { return round ? yc + (t * zc - yc) / std::hypot(1.0, t) : t * z_ext; }
+  // kTangentPoints: the depth at each silhouette edge (left, right, top, bottom), linearly
+  // interpolated in between; off when `sided` is false.
+  bool sided = false;
+  double t0x = 0, t1x = 1, z0x = 0, z1x = 0, t0y = 0, t1y = 1, z0y = 0, z1y = 0;
+  double x(double t) const
+  {
+    if (sided)
+      return t * (z0x + (z1x - z0x) * (t - t0x) / (t1x - t0x));
+    return round ? xc + (t * zc - xc) / std::hypot(1.0, t) : t * z_ext;
+  }
+  double y(double t) const
+  {
+    if (sided)
+      return t * (z0y + (z1y - z0y) * (t - t0y) / (t1y - t0y));
+    return round ? yc + (t * zc - yc) / std::hypot(1.0, t) : t * z_ext;
+  }
 };
 
 struct Slopes {
@@ -131,6 +147,93 @@ Converter round_canopy(const Slopes &s, double z_near)
   return c;
 }
 
+// Least-squares line z = a0 + a1 * x, refitted three times on the points within 2.5 robust
+// sigmas (1.4826 MAD of the residuals) of the previous line: points seen through gaps in the
+// leaves lie behind the surface and must not pull the line. False when degenerate.
+bool robust_line_fit(const std::vector<double> &x, const std::vector<double> &z, double &a0,
+                     double &a1)
+{
+  std::vector<char> use(x.size(), 1);
+  std::vector<double> res(x.size());
+  for (int iter = 0; iter < 4; ++iter) {
+    double n = 0, sx = 0, sz = 0, sxx = 0, sxz = 0;
+    for (std::size_t i = 0; i < x.size(); ++i)
+      if (use[i]) {
+        n += 1;
+        sx += x[i];
+        sz += z[i];
+        sxx += x[i] * x[i];
+        sxz += x[i] * z[i];
+      }
+    const double det = n * sxx - sx * sx;
+    if (n < 5 || !(std::abs(det) > 1e-12 * n * n))
+      return false;
+    a1 = (n * sxz - sx * sz) / det;
+    a0 = (sz - a1 * sx) / n;
+    for (std::size_t i = 0; i < x.size(); ++i)
+      res[i] = std::abs(z[i] - a0 - a1 * x[i]);
+    std::vector<double> r = res;
+    const double sigma = 1.4826 * median(r);
+    for (std::size_t i = 0; i < x.size(); ++i)
+      use[i] = res[i] <= 2.5 * sigma + 1e-9;
+  }
+  return std::isfinite(a0) && std::isfinite(a1);
+}
+
+// kTangentPoints: the depth where one bounding ray (the silhouette's extreme slope t_edge along
+// x or y) touches the canopy. The points nearest that edge are taken: those within `fraction`
+// of the extent from it (the fraction grows by 1.5x until at least `min_points` are in). Near
+// a limb a convex surface recedes as the square root of the distance from it (a circle of
+// radius r seen at distance d inside its limb is sqrt(2 r d) in front of it), so the depth is
+// fitted as z = a0 + a1 * sqrt(distance) and the limb's depth is a0. A fit that does not recede
+// (a1 > 0) or fails falls back to the median of those points; no points at all to `fallback`.
+double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, bool vertical,
+                  double t_edge, double t_other, double fraction, std::size_t min_points,
+                  double fallback)
+{
+  const double fy = g.fy > 0 ? g.fy : g.fx;
+  std::vector<double> dist(pts.size()); // from the edge, in units of the extent
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const double t = vertical ? (pts[i].v - g.cy) / fy : (pts[i].u - g.cx[LEFT]) / g.fx;
+    dist[i] = std::abs(t - t_edge) / std::abs(t_other - t_edge);
+  }
+  for (double f = fraction; f <= 0.5; f *= 1.5) {
+    std::vector<double> z, r;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      if (dist[i] <= f) {
+        z.push_back(pts[i].z_mm);
+        r.push_back(std::sqrt(dist[i]));
+      }
+    if (z.size() < min_points)
+      continue;
+    double a0 = 0, a1 = 0;
+    if (!robust_line_fit(r, z, a0, a1) || !(a1 <= 0))
+      return median(z);
+    return a0;
+  }
+  return fallback;
+}
+
+Converter tangent_points(const std::vector<CanopyPoint> &pts, const Slopes &s,
+                         const StereoGeometry &g, double fraction, std::size_t min_points,
+                         double fallback)
+{
+  Converter c;
+  c.sided = true;
+  c.t0x = s.left;
+  c.t1x = s.right;
+  c.t0y = s.top;
+  c.t1y = s.bottom;
+  c.z0x = side_depth(pts, g, false, s.left, s.right, fraction, min_points, fallback);
+  c.z1x = side_depth(pts, g, false, s.right, s.left, fraction, min_points, fallback);
+  c.z0y = side_depth(pts, g, true, s.top, s.bottom, fraction, min_points, fallback);
+  c.z1y = side_depth(pts, g, true, s.bottom, s.top, fraction, min_points, fallback);
+  const double dt = s.right - s.left;
+  c.z_ext = dt > 0 ? (c.x(s.right) - c.x(s.left)) / dt : fallback;
+  c.zc = c.z_ext;
+  return c;
+}
+
 // Median depth of the points in the outer edge_fraction of their row's extent.
 double edge_depth(const std::vector<CanopyPoint> &pts, const RowExtents &e, double fraction,
                   double fallback)
@@ -149,12 +252,13 @@ double edge_depth(const std::vector<CanopyPoint> &pts, const RowExtents &e, doub
 
 Converter choose_converter(const MetricsParams &p, const Slopes &s, const Summary &depth,
                            std::vector<double> z, const std::vector<CanopyPoint> &pts,
-                           const RowExtents &e)
+                           const RowExtents &e, const StereoGeometry &g)
 {
   Converter c;
   const double mid = depth.median + 0.5 * (depth.p95 - depth.p05);
   switch (p.extent_depth) {
   case ExtentDepth::kRoundCanopy: return round_canopy(s, percentile(z, p.near_percentile));
+  case ExtentDepth::kTangentPoints: return tangent_points(pts, s, g, p.tangent_fraction, std::size_t(p.tangent_min_points), mid);
   case ExtentDepth::kEdgePoints: c.z_ext = edge_depth(pts, e, p.edge_fraction, mid); break;
   case ExtentDepth::kMidDepth: c.z_ext = mid; break;
   case ExtentDepth::kFrontFace: c.z_ext = depth.median; break;
@@ -251,7 +355,7 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
                  (e.bbox.y - 0.5 - g.cy) / fy, (e.bbox.br().y - 0.5 - g.cy) / fy};
   std::vector<double> z = depths_of(pts);
   const Summary depth = summarize(z);
-  const Converter c = choose_converter(p, s, depth, z, pts, e);
+  const Converter c = choose_converter(p, s, depth, z, pts, e, g);
 
   m.tree_present = true;
   m.points = pts.size();

@@ -303,7 +303,7 @@ TEST(OverlayBands, SegmentIsThePinholeProjection)
 }
 
 // treemetrics' bands projected at its centroid depth land on the silhouette's edges: a disc
-// canopy whose front is 2 m away, the default round-canopy model.
+// canopy whose front is 2 m away, the round-canopy model.
 TEST(OverlayBands, TreemetricsBandsProjectOntoTheSilhouette)
 {
   StereoGeometry g;
@@ -327,6 +327,7 @@ TEST(OverlayBands, TreemetricsBandsProjectOntoTheSilhouette)
       }
   MetricsParams params;
   params.n_bands = 5;
+  params.extent_depth = ExtentDepth::kRoundCanopy;
   const TreeMetrics m = compute_tree_metrics(s, pts, g, params);
   ASSERT_TRUE(m.tree_present);
   ASSERT_EQ(m.bands.size(), 5u);

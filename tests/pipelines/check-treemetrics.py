@@ -1,8 +1,15 @@
 #!/usr/bin/env python3
 """Checks the treemetrics messages of a gst-launch-1.0 -m log against a fixture's truth.json:
 every frame measured (count), a tree found in each, running times one frame period apart,
-distance within 5% and canopy height/width within 15% of the truth (the rectified-left values
-treestereo-synth wrote). Usage: check-treemetrics.py <log> <truth.json> <frames>"""
+distance, canopy height/width and thickness against the truth (the rectified-left values
+treestereo-synth wrote) within tolerances for 640x480 JPEG fixtures:
+  distance 1.5%: issue 7's 0.5% bias is for 1296x972; at 640x480 one pixel of disparity is
+    twice as much depth and JPEG blurs the texture SIFT matches on (measured: +0.2%);
+  height, width 6%: the 1296x972 target is 1.5%; at 640x480 the tree is ~250 px wide and the
+    limb depths of tangent-points rest on the few SIFT matches near each edge of a JPEG
+    (measured worst over seq-static's 8 frames: height 2.8%, width 4.4%): NOT the target;
+  thickness 25%: issue 7's 20% plus the JPEG/sparse-match margin (measured worst 17.8%).
+Usage: check-treemetrics.py <log> <truth.json> <frames>"""
 import json
 import re
 import sys
@@ -15,6 +22,7 @@ errors = []
 if len(msgs) != frames:
     errors.append('%d treemetrics messages, expected %d' % (len(msgs), frames))
 period = 1e9 / truth['framerate']
+worst = {}
 for i, m in enumerate(msgs[:frames]):
     t = truth['frames'][i]
     if 'tree-present=(boolean)true' not in m:
@@ -22,16 +30,19 @@ for i, m in enumerate(msgs[:frames]):
         continue
     if abs(field(m, 'running-time') - i * period) > 1e3:
         errors.append('frame %d: running time %d, expected %d' % (i, field(m, 'running-time'), i * period))
-    checks = [('distance', t['rectified_left']['distance_m'], 0.05),
-              ('height', t['canopy_height_m'], 0.15), ('width', t['canopy_width_m'], 0.15)]
+    checks = [('distance', t['rectified_left']['distance_m'], 0.015),
+              ('height', t['canopy_height_m'], 0.06), ('width', t['canopy_width_m'], 0.06),
+              ('thickness', t['rectified_left']['thickness_m'], 0.25)]
     for name, want, tol in checks:
         got = field(m, name)
+        worst[name] = max(worst.get(name, 0.0), abs(got - want) / want)
         if abs(got - want) > tol * want:
             errors.append('frame %d: %s %.3f m, truth %.3f m' % (i, name, got, want))
     if i == 0:
         print('frame 0: distance %.3f m (truth %.3f), height %.3f m (%.3f), width %.3f m (%.3f)'
               % (field(m, 'distance'), t['rectified_left']['distance_m'], field(m, 'height'),
                  t['canopy_height_m'], field(m, 'width'), t['canopy_width_m']))
+print('worst relative errors: ' + ', '.join('%s %.1f%%' % (k, 100 * v) for k, v in worst.items()))
 for e in errors:
     print('FAIL:', e)
 sys.exit(1 if errors else 0)

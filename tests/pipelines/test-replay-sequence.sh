@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # pipelines/replay-sequence.sh on the committed fixture tests/fixtures/seq-static (8 frames,
 # 640x480, 7 fps, with its calibration and ground truth): 8 treemetrics messages, each with a tree
-# at the true distance (5%) and size (15%), 1/7 s apart (check-treemetrics.py).
+# at the true distance (1.5%), size (6%) and thickness (25%), 1/7 s apart (check-treemetrics.py).
 set -uo pipefail
 src=${TREESTEREO_SOURCE_DIR:?TREESTEREO_SOURCE_DIR not set}
 fx=$src/tests/fixtures/seq-static

@@ -8,7 +8,18 @@
 // canopy), and the points' own X/Y spread reads low too (the visible limb lies in front of the
 // canopy's widest section). `MetricsParams::extent_depth` chooses how the angles become metres:
 //
-//  - kRoundCanopy (default): the canopy is taken as a solid of revolution about a vertical axis
+//  - kTangentPoints (default): each bounding ray of the silhouette (leftmost, rightmost, top,
+//    bottom) touches the canopy at one point; that point's depth converts that ray's slope:
+//    X_left = t_left * Z_left, X_right = t_right * Z_right (Y likewise), so the extent needs
+//    no shape model. Z of an edge comes from the points within tangent_fraction of the extent
+//    from it: the surface recedes as sqrt(distance from the limb) there, so the depth is fitted
+//    as a0 + a1 * sqrt(distance) and a0 (the limb's depth) taken. Between the edges the
+//    conversion depth is interpolated linearly in slope (bands, area, perimeter). On the
+//    synthetic orchard (a union of ellipsoid clusters 0.9 x 0.7 x 0.6 m, whose depth and width
+//    differ) kRoundCanopy read 3-5 % wide, because the tree is no solid of revolution and the
+//    extreme clusters are not at the centre's depth; this reads within about 1.5 % (see
+//    docs/results.md "## Accuracy" and bench/bench_extent.cpp).
+//  - kRoundCanopy: the canopy is taken as a solid of revolution about a vertical axis
 //    (a sphere, an ellipsoid, a cone: an orchard tree). Its nearest point is at depth
 //    Z_near = Zc - R, and the left/right silhouette edge rays are tangent to its widest
 //    horizontal section of radius R centred at (Xc, Zc). With the edge rays' angles th_l, th_r,
@@ -25,7 +36,7 @@
 //    silhouette's left and right edges (per row, within edge_fraction of the row's extent).
 //  - kMidDepth: converts at median + thickness/2.
 //  - kFrontFace: converts at `distance` (the median); kept to show how low it reads.
-// The last three convert X = t*Z_ext with t = (x - cx)/fx (so bands, area and perimeter use
+// kEdgePoints, kMidDepth and kFrontFace convert X = t*Z_ext with t = (x - cx)/fx (so bands, area and perimeter use
 // the same Z_ext). kRoundCanopy reports the equivalent Z_ext = width / (t_r - t_l).
 #pragma once
 
@@ -38,13 +49,18 @@
 
 namespace treestereo {
 
-enum class ExtentDepth { kRoundCanopy, kEdgePoints, kMidDepth, kFrontFace };
+// (kTangentPoints last: the values are the treemetrics element's enum values.)
+enum class ExtentDepth { kRoundCanopy, kEdgePoints, kMidDepth, kFrontFace, kTangentPoints };
 
 struct MetricsParams {
   int n_bands = 5;               // horizontal bands, canopy top to bottom (>= 1)
-  ExtentDepth extent_depth = ExtentDepth::kRoundCanopy;
+  ExtentDepth extent_depth = ExtentDepth::kTangentPoints;
   double near_percentile = 2.0;  // kRoundCanopy: Z_near = this percentile of the depths
   double edge_fraction = 0.15;   // kEdgePoints: the outer part of each row's extent
+  // kTangentPoints: the points within this fraction of the extent from an edge (at least
+  // tangent_min_points of them, the band widens until so) give that edge's depth.
+  double tangent_fraction = 0.1;
+  int tangent_min_points = 15;
   // A band's nearest-face depth: this percentile of its points' depths (5 = robust to a
   // stray point, still the front). Bands with fewer than min_band_points points take it from
   // their neighbours (see Band::depth_measured).
