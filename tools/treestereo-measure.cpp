@@ -49,6 +49,17 @@ struct Options {
   gchar *json = nullptr, *csv = nullptr, *record = nullptr;
   gboolean points = FALSE, matches = FALSE, quiet = FALSE;
   gint bitrate = 4000;
+
+  Options() = default;
+  Options(const Options &) = delete;
+  Options &operator=(const Options &) = delete;
+  ~Options()
+  {
+    // GOption fills these with g_strdup'ed strings
+    for (gchar *s : {left, right, camera_left, camera_right, camera_caps, calibration, size,
+                     index, method, mode, json, csv, record})
+      g_free(s);
+  }
 };
 
 const gchar *kSummary =
