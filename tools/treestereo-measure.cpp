@@ -38,6 +38,7 @@ struct Options {
   gchar *size = nullptr;
   gdouble fps = 0;
   gdouble latency_ms = 100, max_skew_ms = 20;
+  gint pair_queue = 8;
   gint64 seed = 1;
   gdouble distance = 2.0, speed = 0.5, light = 1.0;
   // analysis
@@ -437,7 +438,8 @@ std::string build_description(Job &job)
     d << " latency=" << gint64(o.latency_ms * GST_MSECOND)
       << " max-skew=" << gint64(o.max_skew_ms * GST_MSECOND);
   if (o.camera_left) // live: when the analysis falls behind, the oldest pairs go, not the cameras'
-    d << " ! queue max-size-buffers=8 max-size-bytes=0 max-size-time=0 leaky=downstream";
+    d << " ! queue max-size-buffers=" << o.pair_queue
+      << " max-size-bytes=0 max-size-time=0 leaky=downstream";
   d << " ! exgsegment name=seg" << (o.index ? std::string(" index=") + o.index : "");
   d << " ! siftmatch name=match" << (o.method ? std::string(" method=") + o.method : "")
     << (o.scale > 0 ? " scale=" + std::to_string(o.scale) : "") << " min-depth=" << o.min_depth
@@ -493,6 +495,10 @@ int run(int argc, char **argv)
        "MS"},
       {"max-skew", 0, 0, G_OPTION_ARG_DOUBLE, &o.max_skew_ms,
        "Cameras: largest time between paired frames, ms (20)", "MS"},
+      {"pair-queue", 0, 0, G_OPTION_ARG_INT, &o.pair_queue,
+       "Cameras: pairs waiting for the analysis; older ones are dropped when it falls behind "
+       "(8)",
+       "N"},
       {"calibration", 'c', 0, G_OPTION_ARG_FILENAME, &o.calibration,
        "Stereo calibration (OpenCV YAML/XML or 'left.yaml;right.yaml')", "FILE"},
       {"no-rectify", 0, 0, G_OPTION_ARG_NONE, &o.no_rectify,
@@ -548,6 +554,8 @@ int run(int argc, char **argv)
     o.synthetic = TRUE;
   if (int(o.synthetic) + int(files) + int(cameras) > 1)
     usage_error("choose one input: --synthetic, --left/--right or --camera-left/--camera-right");
+  if (o.pair_queue < 1)
+    usage_error("--pair-queue must be at least 1");
   if (o.bands < 1 || o.bands > 64)
     usage_error("--bands must be 1..64");
   if (o.smoothing < 0 || o.smoothing >= 1)

@@ -3,7 +3,8 @@
 # fake-gv-cameras.sh): the tool's live path builds, pairs and measures every frame pair and
 # writes one JSON line per pair. The fake images are not trees (tree_present may be false).
 # The first frames of two free-running cameras come in a burst and a few are dropped as
-# unpaired (docs/aravis.md): up to 8 of 20 pairs may be missing.
+# unpaired (docs/aravis.md): up to 8 of 20 pairs may be missing. The pair queue holds them all,
+# so a loaded machine slows the run down instead of dropping pairs.
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 measure=${1:?usage: test-measure-cameras.sh TREESTEREO_MEASURE}
@@ -16,7 +17,7 @@ n=20
 gst-launch-1.0 -q treetestsrc num-buffers=1 calibration-out="$tmp/rig.yml" ! \
   video/x-raw,width=512,height=512 ! fakesink || { echo "FAIL: no calibration"; exit 1; }
 timeout 60 "$measure" --camera-left 127.0.0.1 --camera-right 127.0.0.2 --calibration "$tmp/rig.yml" \
-  --camera-caps video/x-bayer,framerate=10/1 --frames $n --latency 250 --max-skew 75 \
+  --camera-caps video/x-bayer,framerate=10/1 --frames $n --latency 250 --max-skew 75 --pair-queue $n \
   --json "$tmp/r.jsonl" --quiet >"$tmp/run.log" 2>&1 || { cat "$tmp/run.log"; echo "FAIL: exit $?"; exit 1; }
 lines=$(wc -l <"$tmp/r.jsonl")
 [ "$lines" -ge $((n - 8)) ] && [ "$lines" -le $n ] || { cat "$tmp/run.log"; echo "FAIL: $lines pairs of $n frames"; exit 1; }
