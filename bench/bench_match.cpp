@@ -2,6 +2,7 @@
 // ground truth, plus its perturbations (light -30%/+30%, rotation 90 degrees, scale 50% of the
 // right view), and measures the speed of the stereo pipeline (scale, ROI, parallel detection).
 // Usage: bench-match [data_dir] [runs]   (data_dir: default $TREESTEREO_DATA_DIR or ../shared/data)
+#include "treestereo/data_dir.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/middlebury.hpp"
 #include "treestereo/stats.hpp"
@@ -211,9 +212,7 @@ void speed(const std::string &root, int runs)
 
 int main(int argc, char **argv)
 {
-  std::string root = TREESTEREO_DATA_DIR;
-  if (const char *env = std::getenv("TREESTEREO_DATA_DIR"))
-    root = env;
+  std::string root = data_dir();
   if (argc > 1 && argv[1][0] != '\0')
     root = argv[1];
   const int runs = argc > 2 ? std::max(1, std::atoi(argv[2])) : 3;

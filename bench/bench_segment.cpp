@@ -2,6 +2,7 @@
 // The view is the left half (a ROI with the real stride) of a side-by-side frame, as in the
 // pipeline. Content: the first orchard photo when the shared data is there, else a synthetic
 // scene (a textured green crown on soil and sky). Prints a markdown table.
+#include "treestereo/data_dir.hpp"
 #include "treestereo/segment.hpp"
 #include "treestereo/stats.hpp"
 
@@ -19,8 +20,7 @@ namespace {
 
 cv::Mat source_image(std::string &what)
 {
-  const char *env = std::getenv("TREESTEREO_DATA_DIR");
-  const std::string dir = env ? env : TREESTEREO_DATA_DIR;
+  const std::string dir = data_dir();
   cv::Mat img = cv::imread(dir + "/orchard-photos/1_5m_FULL_TREE_2022_06_17_P1.png");
   if (!img.empty()) {
     what = "orchard photo 1_5m_FULL_TREE (resized)";

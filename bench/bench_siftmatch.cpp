@@ -3,6 +3,7 @@
 // truth disparities scaled alike), whole views and a canopy mask, at several detection scales.
 //
 //   ./build/bench/bench-siftmatch [data dir] [runs]
+#include "treestereo/data_dir.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/middlebury.hpp"
 #include "treestereo/rectify.hpp"
@@ -147,8 +148,7 @@ void scene_table(cv::Size size, int runs)
 
 int main(int argc, char **argv)
 {
-  std::string root = std::getenv("TREESTEREO_DATA_DIR") ? std::getenv("TREESTEREO_DATA_DIR")
-                                                        : TREESTEREO_DATA_DIR;
+  std::string root = data_dir();
   if (argc > 1 && argv[1][0] != '\0')
     root = argv[1];
   const int runs = argc > 2 ? std::max(1, std::atoi(argv[2])) : 3;

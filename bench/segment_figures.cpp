@@ -3,6 +3,7 @@
 // mask overlays (480 px wide, the marked rectangles drawn) to the directory given
 // as the first argument (docs/images/ in the repository).
 #include "segment_regions.hpp"
+#include "treestereo/data_dir.hpp"
 #include "treestereo/segment.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -54,8 +55,7 @@ cv::Mat figure(const cv::Mat &img, const cv::Mat &mask, const segment_truth::Mar
 int main(int argc, char **argv)
 {
   const std::string outdir = argc > 1 ? argv[1] : "";
-  const char *env = std::getenv("TREESTEREO_DATA_DIR");
-  const std::string dir = env ? env : TREESTEREO_DATA_DIR;
+  const std::string dir = data_dir();
   std::printf("| image | index | threshold | foliage covered: mean (min) | other covered: mean "
               "(max) | hard (green cloth) covered |\n|---|---|---|---|---|---|\n");
   for (const auto &m : segment_truth::marked_images()) {

@@ -2,6 +2,7 @@
  * shifted by a known sub-pixel disparity, a geometry meta attached here; the matches meta and the
  * bus message against that truth; vegetation masks; errors; Middlebury Jadeplant. */
 /* OpenCV first: gstcheck's macros (fail, ...) would break its headers. */
+#include "treestereo/data_dir.hpp"
 #include "treestereo/middlebury.hpp"
 #include "treestereo/stats.hpp"
 
@@ -211,13 +212,6 @@ void check_synthetic(const char *format)
   fail_unless_equals_uint64(times.running_time, 120 * GST_MSECOND);
   gst_buffer_unref(out);
   rig_teardown(rig);
-}
-
-std::string data_dir()
-{
-  if (const char *env = std::getenv("TREESTEREO_DATA_DIR"))
-    return env;
-  return TREESTEREO_DATA_DIR;
 }
 
 /* A vegetation meta whose two views are @mask (GRAY8, view size) or, when empty, @box only. */

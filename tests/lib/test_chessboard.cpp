@@ -1,3 +1,4 @@
+#include "treestereo/data_dir.hpp"
 #include "treestereo/chessboard.hpp"
 
 #include <gtest/gtest.h>
@@ -11,12 +12,6 @@
 using namespace treestereo;
 
 namespace {
-
-std::string data_dir()
-{
-  const char *env = std::getenv("TREESTEREO_DATA_DIR");
-  return env && *env ? env : TREESTEREO_DATA_DIR;
-}
 
 std::string samples_list()
 {

@@ -1,3 +1,4 @@
+#include "treestereo/data_dir.hpp"
 #include "treestereo/features.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/middlebury.hpp"
@@ -73,13 +74,6 @@ cv::Mat shift_left(const cv::Mat &img, double d)
   const cv::Matx23d m(1, 0, -d, 0, 1, 0);
   cv::warpAffine(img, out, m, img.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
   return out;
-}
-
-std::string data_dir()
-{
-  if (const char *env = std::getenv("TREESTEREO_DATA_DIR"))
-    return env;
-  return TREESTEREO_DATA_DIR;
 }
 
 double median_abs_error(const std::vector<StereoMatch> &m, double d_true)

@@ -1,4 +1,5 @@
 #include "segment_regions.hpp"
+#include "treestereo/data_dir.hpp"
 #include "treestereo/segment.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -326,8 +327,7 @@ TEST(Segment, BadInputThrowsWithReason)
 // Real images against hand-marked regions (tests/lib/segment_regions.hpp).
 TEST(Segment, RealImagesHandMarkedRegions)
 {
-  const char *env = std::getenv("TREESTEREO_DATA_DIR");
-  const std::string dir = env ? env : TREESTEREO_DATA_DIR;
+  const std::string dir = data_dir();
   // Required per image with the default index (exg-norm), keep=all: mean foliage covered,
   // mean other covered. Measured values are in docs/segmentation.md.
   struct Need {

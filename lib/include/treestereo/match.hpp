@@ -60,7 +60,9 @@ struct MatchStats {
 };
 
 struct MatcherParams {
-  MatchMethod method = MatchMethod::CosineNorm;
+  // Euclidean by default: with the stereo constraints it is as correct as the paper's cosine-norm
+  // or better, with 2-3x the matches (docs/results-matching.md).
+  MatchMethod method = MatchMethod::Euclidean;
   // Ratio test: keep a reference keypoint only when its best candidate's distance (euclidean:
   // L2; cosine-norm: angle, as in Lowe's match.m) is below ratio x the second best's.
   // A single candidate passes. >= 1 turns it off (the paper states no such test).
