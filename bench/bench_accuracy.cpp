@@ -9,6 +9,7 @@
 // Truth: distance and thickness are the visible canopy surface's median and p95-p05 depth in the
 // rectified-left frame (the renderer's truth rotated by the geometry meta's R1), height and width
 // the canopy's true 3D extents: the same definitions treemetrics uses.
+#include "sweep.hpp"
 #include "treestereo/calibration.hpp"
 #include "treestereo/scene.hpp"
 #include "treestereo/stats.hpp"
@@ -27,6 +28,8 @@
 #include <vector>
 
 using namespace treestereo;
+using treestereo::bench::parse_list;
+using treestereo::bench::parse_sizes;
 
 namespace {
 
@@ -46,36 +49,6 @@ struct Result {
   unsigned points = 0, clipped = 0;
   double ms_per_frame = 0;
 };
-
-std::vector<double> parse_list(const std::string &s)
-{
-  std::vector<double> v;
-  if (s.find(':') != std::string::npos) {
-    double a, b, step;
-    if (std::sscanf(s.c_str(), "%lf:%lf:%lf", &a, &b, &step) == 3 && step > 0)
-      for (int i = 0; a + i * step <= b + 1e-9; i++)
-        v.push_back(a + i * step);
-    return v;
-  }
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ','))
-    v.push_back(std::stod(item));
-  return v;
-}
-
-std::vector<cv::Size> parse_sizes(const std::string &s)
-{
-  std::vector<cv::Size> v;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    int w, h;
-    if (std::sscanf(item.c_str(), "%dx%d", &w, &h) == 2)
-      v.emplace_back(w, h);
-  }
-  return v;
-}
 
 SceneParams scene_of(const Config &c)
 {

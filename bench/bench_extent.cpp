@@ -9,6 +9,7 @@
 // against the canopy's true 3D height and width. Prints markdown tables.
 //
 //   bench-extent [--sizes 1296x972] [--distances 1.8,2.0,2.2] [--seeds 1,2,3] [--lights 1.0]
+#include "sweep.hpp"
 #include "treestereo/depth.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/metrics.hpp"
@@ -26,18 +27,9 @@
 #include <vector>
 
 using namespace treestereo;
+using treestereo::bench::parse_list;
 
 namespace {
-
-std::vector<double> parse_list(const std::string &s)
-{
-  std::vector<double> v;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ','))
-    v.push_back(std::stod(item));
-  return v;
-}
 
 const char *model_name(ExtentDepth e)
 {

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "element_props.h"
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
 #include <gst/treestereo/treestereo-meta.h>
@@ -56,18 +57,8 @@ struct Rig {
 Rig rig_new(const char *caps, const char *props)
 {
   Rig r;
-  GstElement *e = gst_element_factory_make("stereodepth", nullptr);
+  GstElement *e = element_with_props("stereodepth", props);
   fail_unless(e != nullptr);
-  if (props) {
-    /* "name=value name=value" through the element's own property parsing */
-    gchar **kv = g_strsplit(props, " ", -1);
-    for (gchar **p = kv; *p; p++) {
-      gchar **nv = g_strsplit(*p, "=", 2);
-      gst_util_set_object_arg(G_OBJECT(e), nv[0], nv[1]);
-      g_strfreev(nv);
-    }
-    g_strfreev(kv);
-  }
   r.bus = gst_bus_new();
   gst_element_set_bus(e, r.bus);
   r.h = gst_harness_new_with_element(e, "sink", "src");

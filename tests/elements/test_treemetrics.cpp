@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "element_props.h"
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
 #include <gst/treestereo/treestereo-meta.h>
@@ -136,17 +137,8 @@ struct Rig {
 Rig rig_new(const char *props)
 {
   Rig r;
-  GstElement *e = gst_element_factory_make("treemetrics", nullptr);
+  GstElement *e = element_with_props("treemetrics", props);
   fail_unless(e != nullptr);
-  if (props) {
-    gchar **kv = g_strsplit(props, " ", -1);
-    for (gchar **p = kv; *p; p++) {
-      gchar **nv = g_strsplit(*p, "=", 2);
-      gst_util_set_object_arg(G_OBJECT(e), nv[0], nv[1]);
-      g_strfreev(nv);
-    }
-    g_strfreev(kv);
-  }
   r.bus = gst_bus_new();
   gst_element_set_bus(e, r.bus);
   r.h = gst_harness_new_with_element(e, "sink", "src");
