@@ -244,7 +244,8 @@ struct Stamps {
   std::map<std::string, std::vector<gint64>> in, out;
   std::vector<gint64> sink;
   std::vector<double> cpu_at_sink; // process CPU seconds when the frame reached the sink
-  std::vector<long> rss_kb;        // VmRSS every 100 frames
+  std::vector<long> rss_kb;        // VmRSS every 100 frames (at frames 50, 150, ...)
+  long last_rss_kb = 0;            // VmRSS at the last frame
   std::vector<unsigned> keypoints; // left + right, from the matches meta
   std::vector<char> tree;          // the metrics meta said tree_present
   std::vector<double> distance_m;  // its distance
@@ -282,8 +283,10 @@ GstPadProbeReturn stamp_probe(GstPad *, GstPadProbeInfo *info, gpointer data)
   if (ctx->is_sink) {
     Stamps &s = *ctx->stamps;
     s.cpu_at_sink[i] = cpu_seconds();
-    if (i % 100 == 99)
+    if (i % 100 == 49)
       s.rss_kb.push_back(proc_status_kb("VmRSS:"));
+    if (i == s.n - 1)
+      s.last_rss_kb = proc_status_kb("VmRSS:");
     if (const GstTreeStereoMatchesMeta *m = gst_buffer_get_tree_stereo_matches_meta(b))
       s.keypoints[i] = m->n_keypoints[0] + m->n_keypoints[1];
     if (const GstTreeStereoMetricsMeta *m = gst_buffer_get_tree_stereo_metrics_meta(b))
@@ -328,6 +331,7 @@ struct RunResult {
   double cpu_ms_per_frame = 0;
   std::vector<unsigned> keypoints;
   std::vector<long> rss_kb;
+  long last_rss_kb = 0;
   int frames = 0, trees = 0, counted = 0, copies = 0;
 };
 
@@ -428,6 +432,7 @@ RunResult run_chain(const Chain &c, const Frames &f, int n, int warmup)
   res.wall_s = (t1 - t0) * 1e-6;
   res.peak_rss_mb = proc_status_kb("VmHWM:") / 1024.0;
   res.rss_kb = s.rss_kb;
+  res.last_rss_kb = s.last_rss_kb;
   // `disparity` forwards the left pad's EOS at once and may drop the last pair: count the frames
   // that arrived.
   int last = n - 1;
@@ -555,17 +560,17 @@ void throughput(const Options &o, const std::string &dir)
     std::printf("frames/s: median of %d runs of %d frames (the first %d of each left out), the "
                 "pipelines interleaved; CPU ms/frame: user+sys of the process per frame (the "
                 "load-independent cost); CPU %%: of one core (200 %% = both); element ms: median "
-                "/ p95 over all frames; peak RSS: the process's, including the preloaded "
-                "frames; distance error: |measured - true| distance to the canopy (cm, median / "
+                "/ p95 over all frames (peak RSS: see the size table; here the pipelines "
+                "share one process); distance error: |measured - true| distance to the canopy (cm, median / "
                 "p95) on frames with a tree found; frames copied: frames whose pixel memory at "
                 "the sink is not the one stereorectify wrote (0 = no element copied a frame)."
                 "\n\n",
                 o.runs, o.frames, o.warmup);
     std::printf("| size | pipeline | frames/s | vs disparity | CPU ms/frame | CPU %% | "
                 "stereorectify ms | exgsegment ms | siftmatch ms | stereodepth ms | treemetrics "
-                "ms | disparity ms | peak RSS MB | preloaded MB | trees found | distance error "
-                "cm | keypoints L+R | frames copied |\n");
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+                "ms | disparity ms | trees found | distance error cm | keypoints L+R | frames copied "
+                "|\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   }
   std::vector<Variant> variants;
   for (const std::string &spec : o.pipelines)
@@ -584,15 +589,14 @@ void throughput(const Options &o, const std::string &dir)
       const std::string &kind = variants[k].kind;
       const double fps = median(p.fps);
       const bool measures = kind != "disparity";
-      std::printf("| %s | %s | %.2f | %s | %.0f | %.0f | %s | %s | %s | %s | %s | %s | %.0f | "
-                  "%.0f | %s | %s | %s | %s |\n",
+      std::printf("| %s | %s | %.2f | %s | %.0f | %.0f | %s | %s | %s | %s | %s | %s | %s | "
+                  "%s | %s | %s |\n",
                   size_str(size).c_str(), variants[k].label.c_str(), fps,
                   ref > 0 ? cv::format("%.2fx", fps / ref).c_str() : "-", median(p.cpu_ms),
                   median(p.cpu), ms_cell(p, "stereorectify").c_str(),
                   ms_cell(p, "exgsegment").c_str(), ms_cell(p, "siftmatch").c_str(),
                   ms_cell(p, "stereodepth").c_str(), ms_cell(p, "treemetrics").c_str(),
-                  ms_cell(p, "disparity").c_str(), *std::max_element(p.rss.begin(), p.rss.end()),
-                  f->megabytes(),
+                  ms_cell(p, "disparity").c_str(),
                   measures ? cv::format("%d/%d", p.trees, p.frames).c_str() : "-",
                   measures ? err_cell(p).c_str() : "-",
                   measures && kind != "dense" ? cv::format("%.0f", median(p.keypoints)).c_str()
@@ -632,18 +636,22 @@ void keypoint_growth(const Options &o, const std::string &dir)
 void size_growth(const Options &o, const std::string &dir)
 {
   std::printf("\n### Cost against image size (full chain, sequential, default settings)\n\n");
+  std::printf("One process runs only this chain, one size after the other; peak RSS is the "
+              "largest of the %d runs at that size and includes the preloaded frames (%d raw "
+              "stereo pairs, last column).\n\n", o.runs, o.distinct);
   std::printf("| size | megapixels | keypoints L+R | stereorectify ms | exgsegment ms | "
-              "siftmatch ms | stereodepth ms | treemetrics ms | CPU ms/frame | frames/s |\n"
-              "|---|---|---|---|---|---|---|---|---|---|\n");
+              "siftmatch ms | stereodepth ms | treemetrics ms | CPU ms/frame | frames/s | peak "
+              "RSS MB | preloaded MB |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const cv::Size &size : o.growth_sizes) {
     std::unique_ptr<Frames> f = preload(size, o.distinct, dir);
     Pooled p = run_many({Variant{"full", "full", ""}}, *f, o)[0];
     const double fps = median(p.fps);
-    std::printf("| %s | %.2f | %.0f | %s | %s | %s | %s | %s | %.0f | %.2f |\n",
+    std::printf("| %s | %.2f | %.0f | %s | %s | %s | %s | %s | %.0f | %.2f | %.0f | %.0f |\n",
                 size_str(size).c_str(), size.area() / 1e6, median(p.keypoints),
                 ms_cell(p, "stereorectify").c_str(), ms_cell(p, "exgsegment").c_str(),
                 ms_cell(p, "siftmatch").c_str(), ms_cell(p, "stereodepth").c_str(),
-                ms_cell(p, "treemetrics").c_str(), median(p.cpu_ms), fps);
+                ms_cell(p, "treemetrics").c_str(), median(p.cpu_ms), fps,
+                *std::max_element(p.rss.begin(), p.rss.end()), f->megabytes());
     std::fflush(stdout);
   }
 }
@@ -659,11 +667,11 @@ void memory_run(const Options &o, const std::string &dir)
     std::printf("Too few samples (run at least 400 frames).\n");
     return;
   }
-  std::printf("VmRSS (MB) at the sink every 100 frames:");
+  std::printf("VmRSS (MB) at the sink at frames 50, 150, 250, ...:");
   std::vector<double> x, y;
   for (size_t i = 0; i < r.rss_kb.size(); i++) {
     std::printf(" %.0f", r.rss_kb[i] / 1024.0);
-    x.push_back(double(i + 1) * 100);
+    x.push_back(double(i) * 100 + 50);
     y.push_back(r.rss_kb[i] / 1024.0);
   }
   // Least-squares slope over the second half: a leak grows steadily, allocator noise does not.
@@ -682,10 +690,10 @@ void memory_run(const Options &o, const std::string &dir)
   std::vector<double> first_half(y.begin(), y.begin() + long(h)), second_half(y.begin() + long(h),
                                                                                 y.end());
   std::printf(".\n\nMedian RSS of the first half %.1f MB, of the second half %.1f MB; slope over "
-              "the second half %+.2f MB per 1000 frames; peak RSS %.0f MB; %.1f frames/s; trees "
-              "found in %d/%d frames.\n",
-              median(first_half), median(second_half), 1000.0 * sxy / sxx, r.peak_rss_mb, r.fps,
-              r.trees, r.frames);
+              "the second half %+.2f MB per 1000 frames; at the last frame %.1f MB; peak RSS %.0f "
+              "MB; %.1f frames/s; trees found in %d/%d frames.\n",
+              median(first_half), median(second_half), 1000.0 * sxy / sxx,
+              r.last_rss_kb / 1024.0, r.peak_rss_mb, r.fps, r.trees, r.frames);
 }
 
 } // namespace
