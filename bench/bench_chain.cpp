@@ -324,9 +324,8 @@ void feed(GstElement *appsrc, const std::vector<GstBuffer *> &frames, int n)
 }
 
 struct RunResult {
-  double fps = 0, cpu_pct = 0, peak_rss_mb = 0, wall_s = 0;
+  double fps = 0, cpu_pct = 0, peak_rss_mb = 0;
   std::map<std::string, std::vector<double>> ms; // per element, per frame after warm-up
-  std::vector<double> frame_ms;                  // sink-to-sink interval
   std::vector<double> distance_err_cm;           // |measured - true| trunk-canopy distance
   double cpu_ms_per_frame = 0;
   std::vector<unsigned> keypoints;
@@ -395,7 +394,6 @@ RunResult run_chain(const Chain &c, const Frames &f, int n, int warmup)
   GstElement *src1 = gst_bin_get_by_name(GST_BIN(pipe), "src1");
   CALLGRIND_START_INSTRUMENTATION;
   gst_element_set_state(pipe, GST_STATE_PLAYING);
-  const gint64 t0 = g_get_monotonic_time();
   std::thread l(feed, src0, std::cref(rectified_input ? f.rectified[0] : f.raw[0]), n);
   std::thread r(feed, src1, std::cref(rectified_input ? f.rectified[1] : f.raw[1]), n);
   GstBus *bus = gst_element_get_bus(pipe);
@@ -416,7 +414,6 @@ RunResult run_chain(const Chain &c, const Frames &f, int n, int warmup)
     gst_message_unref(m);
     break;
   }
-  const gint64 t1 = g_get_monotonic_time();
   CALLGRIND_STOP_INSTRUMENTATION;
   gst_element_set_state(pipe, GST_STATE_NULL);
   l.join();
@@ -429,7 +426,6 @@ RunResult run_chain(const Chain &c, const Frames &f, int n, int warmup)
     throw std::runtime_error("bench-chain: " + error);
 
   RunResult res;
-  res.wall_s = (t1 - t0) * 1e-6;
   res.peak_rss_mb = proc_status_kb("VmHWM:") / 1024.0;
   res.rss_kb = s.rss_kb;
   res.last_rss_kb = s.last_rss_kb;
@@ -450,7 +446,6 @@ RunResult run_chain(const Chain &c, const Frames &f, int n, int warmup)
     if (s.sink[i] == 0 || s.sink[i - 1] == 0)
       continue;
     res.counted++;
-    res.frame_ms.push_back((s.sink[i] - s.sink[i - 1]) / 1000.0);
     res.keypoints.push_back(s.keypoints[i]);
     res.trees += s.tree[i];
     if (c.has_rectify && s.mem_out[i] != s.mem_sink[i])
