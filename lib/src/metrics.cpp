@@ -68,6 +68,47 @@ std::vector<CanopyPoint> canopy_points(const std::vector<Point3> &points, const 
   return out;
 }
 
+// The silhouette area (pixels) nearest to each point: its Voronoi cell within the mask.
+std::vector<double> area_weights(const std::vector<CanopyPoint> &pts, const cv::Mat &mask)
+{
+  cv::Mat seeds(mask.size(), CV_8U, cv::Scalar(255));
+  std::vector<cv::Point> at(pts.size());
+  for (std::size_t i = 0; i < pts.size(); i++) {
+    at[i] = cv::Point(std::clamp(int(std::lround(pts[i].u)), 0, mask.cols - 1),
+                      std::clamp(int(std::lround(pts[i].v)), 0, mask.rows - 1));
+    seeds.at<uchar>(at[i]) = 0;
+  }
+  cv::Mat dist, labels;
+  cv::distanceTransform(seeds, dist, labels, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+  std::vector<double> area_of_label;
+  for (int y = 0; y < mask.rows; y++) {
+    const uchar *m = mask.ptr<uchar>(y);
+    const int *l = labels.ptr<int>(y);
+    for (int x = 0; x < mask.cols; x++) {
+      if (!m[x])
+        continue;
+      if (std::size_t(l[x]) >= area_of_label.size())
+        area_of_label.resize(std::size_t(l[x]) + 1, 0.0);
+      area_of_label[std::size_t(l[x])] += 1.0;
+    }
+  }
+  // points on the same pixel share its cell
+  std::vector<int> sharing(area_of_label.size() + 1, 0);
+  std::vector<int> label(pts.size());
+  for (std::size_t i = 0; i < pts.size(); i++) {
+    label[i] = labels.at<int>(at[i]);
+    if (std::size_t(label[i]) >= sharing.size())
+      sharing.resize(std::size_t(label[i]) + 1, 0);
+    sharing[std::size_t(label[i])]++;
+  }
+  std::vector<double> w(pts.size(), 0.0);
+  for (std::size_t i = 0; i < pts.size(); i++) {
+    const std::size_t k = std::size_t(label[i]);
+    w[i] = k < area_of_label.size() ? area_of_label[k] / sharing[k] : 0.0;
+  }
+  return w;
+}
+
 std::vector<double> depths_of(const std::vector<CanopyPoint> &pts)
 {
   std::vector<double> z(pts.size());
@@ -360,8 +401,14 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
   m.tree_present = true;
   m.points = pts.size();
   m.matches = points.size();
-  m.distance_m = depth.median * kMmToM;
-  m.thickness_m = (depth.p95 - depth.p05) * kMmToM;
+  if (p.area_weighted) {
+    const std::vector<double> w = area_weights(pts, left.mask);
+    m.distance_m = weighted_percentile(z, w, 50.0) * kMmToM;
+    m.thickness_m = (weighted_percentile(z, w, 95.0) - weighted_percentile(z, w, 5.0)) * kMmToM;
+  } else {
+    m.distance_m = depth.median * kMmToM;
+    m.thickness_m = (depth.p95 - depth.p05) * kMmToM;
+  }
   m.extent_depth_m = c.z_ext * kMmToM;
   m.width_m = (c.x(s.right) - c.x(s.left)) * kMmToM;
   m.height_m = (c.y(s.bottom) - c.y(s.top)) * kMmToM;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
 
 namespace treestereo {
 
@@ -30,6 +31,30 @@ double mad(std::vector<double> &v, double med)
   std::vector<double> dev(v.size());
   std::transform(v.begin(), v.end(), dev.begin(), [med](double x) { return std::abs(x - med); });
   return median(dev);
+}
+
+double weighted_percentile(const std::vector<double> &values, const std::vector<double> &weights,
+                           double p)
+{
+  if (values.size() != weights.size())
+    throw std::invalid_argument("weighted_percentile: values and weights differ in size");
+  std::vector<std::size_t> order(values.size());
+  std::iota(order.begin(), order.end(), std::size_t(0));
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return values[a] < values[b]; });
+  double total = 0.0;
+  for (double w : weights)
+    total += w > 0 ? w : 0.0;
+  if (total <= 0)
+    return 0.0;
+  const double target = std::clamp(p, 0.0, 100.0) / 100.0 * total;
+  double cum = 0.0;
+  for (std::size_t i : order) {
+    cum += weights[i] > 0 ? weights[i] : 0.0;
+    if (cum >= target && weights[i] > 0)
+      return values[i];
+  }
+  return values[order.back()];
 }
 
 Summary summarize(const std::vector<double> &values)

@@ -275,8 +275,9 @@ GST_START_TEST(test_sphere_every_field_against_truth)
   /* depth figures: the definitions on the true depths of the points */
   std::vector<double> z = s.z;
   const treestereo::Summary zs = treestereo::summarize(z);
-  within(m.distance_m, zs.median * 1e-3, 1e-5);
-  within(m.thickness_m, (zs.p95 - zs.p05) * 1e-3, 1e-5);
+  within(m.distance_m, zs.median * 1e-3, 5e-4);
+  /* area-weighted order statistics of a grid-sampled surface: to a millimetre or two */
+  within(m.thickness_m, (zs.p95 - zs.p05) * 1e-3, 2e-3);
   /* extents of a 2 m sphere within lib's 1.5% (the round-canopy model; tangent-points reads
    * a big smooth sphere low, see docs/elements/treemetrics.md) */
   within(m.width_m, 2.0, 0.03);

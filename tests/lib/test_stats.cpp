@@ -35,3 +35,19 @@ TEST(Stats, MadIgnoresOneOutlier)
   EXPECT_EQ(s.min, 9.0);
   EXPECT_EQ(s.max, 1000.0);
 }
+
+TEST(Stats, WeightedPercentileFollowsTheWeights)
+{
+  // 9 samples at 1 standing for 40 % of the area, 1 sample at 2 standing for 60 %
+  std::vector<double> v{1, 1, 1, 1, 1, 1, 1, 1, 1, 2};
+  std::vector<double> w(10, 40.0 / 9);
+  w[9] = 60;
+  EXPECT_DOUBLE_EQ(weighted_percentile(v, w, 50), 2.0);
+  EXPECT_DOUBLE_EQ(weighted_percentile(v, w, 30), 1.0);
+  // equal weights: an order statistic, like percentile() without interpolation
+  std::vector<double> e(10, 1.0);
+  EXPECT_DOUBLE_EQ(weighted_percentile(v, e, 50), 1.0);
+  EXPECT_DOUBLE_EQ(weighted_percentile(v, e, 100), 2.0);
+  EXPECT_EQ(weighted_percentile(v, std::vector<double>(10, 0.0), 50), 0.0);
+  EXPECT_THROW(weighted_percentile(v, {1.0}, 50), std::invalid_argument);
+}

@@ -15,6 +15,12 @@ double median(std::vector<double> &values);
 // Median absolute deviation from the median (unscaled). The vector is reordered.
 double mad(std::vector<double> &values, double med);
 
+// Percentile of values each standing for `weights[i]` of the whole (e.g. the image area a point
+// represents), p in [0, 100]: the smallest value at which the cumulative weight reaches p %.
+// Non-positive weights count as nothing; no weight at all gives 0. Sizes must match.
+double weighted_percentile(const std::vector<double> &values, const std::vector<double> &weights,
+                           double p);
+
 struct Summary {
   std::size_t n = 0;
   double median = 0, mad = 0, p05 = 0, p95 = 0, mean = 0, stddev = 0, min = 0, max = 0;
