@@ -323,8 +323,10 @@ static void drop_frame(GstStereoRectify *self, int i, GstBuffer *buf, GstClockTi
   }
   GST_INFO_OBJECT(self, "dropping %s frame at %" GST_TIME_FORMAT ": %s",
                   i == LEFT ? "left" : "right", GST_TIME_ARGS(rt), why);
+  /* the aggregator reports a latency only with a live source upstream */
+  const gboolean live = GST_CLOCK_TIME_IS_VALID(gst_aggregator_get_latency(GST_AGGREGATOR(self)));
   GstMessage *qos = gst_message_new_qos(
-      GST_OBJECT(self), gst_aggregator_pad_is_inactive(pad) ? FALSE : TRUE, rt,
+      GST_OBJECT(self), live, rt,
       gst_segment_to_stream_time(&pad->segment, GST_FORMAT_TIME, GST_BUFFER_PTS(buf)),
       GST_BUFFER_PTS(buf), GST_BUFFER_DURATION(buf));
   gst_message_set_qos_stats(qos, GST_FORMAT_BUFFERS, paired, dropped);
