@@ -44,7 +44,7 @@
  *
  * ## Example launch line
  * |[
- * gst-launch-1.0 -m stereorectify name=r calibration=calib.yml ! exgsegment ! siftmatch ! \
+ * gst-launch-1.0 -m stereorectify name=r calibration=rig.yml ! exgsegment ! siftmatch ! \
  *   stereodepth max-depth=6000 ! treemetrics ! fakesink \
  *   treetestsrc view=left ! r.left   treetestsrc view=right ! r.right
  * ]|

@@ -54,7 +54,7 @@
  *
  * ## Example launch line
  * |[
- * gst-launch-1.0 -m stereorectify name=r calibration=calib.yml ! exgsegment ! siftmatch ! \
+ * gst-launch-1.0 -m stereorectify name=r calibration=rig.yml ! exgsegment ! siftmatch ! \
  *   stereodepth ! treemetrics bands=6 smoothing=0.6 ! fakesink \
  *   treetestsrc view=left ! r.left   treetestsrc view=right ! r.right
  * ]|

@@ -27,7 +27,7 @@
  *   video/x-raw,format=I420 ! x264enc ! mp4mux ! filesink location=out.mp4
  * ]|
  * |[
- * gst-launch-1.0 stereorectify name=r calibration=calib.yml ! exgsegment ! siftmatch ! \
+ * gst-launch-1.0 stereorectify name=r calibration=rig.yml ! exgsegment ! siftmatch ! \
  *   stereodepth ! treemetrics ! treeoverlay views=left match-style=lines ! videoconvert ! \
  *   autovideosink   treetestsrc view=left ! r.left   treetestsrc view=right ! r.right
  * ]|
