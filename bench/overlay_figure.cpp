@@ -103,7 +103,7 @@ int main(int argc, char **argv)
   scene.bands = m.bands;
   scene.geometry = g;
   scene.band_depth_m = m.centroid_m.z;
-  draw_overlay(frame, ChannelOrder{3, 0, 1, 2}, scene, OverlayStyle());
+  draw_overlay(frame, ChannelOrder{0, 1, 2, 3}, scene, OverlayStyle());
 
   cv::Mat bgr;
   cv::cvtColor(frame, bgr, cv::COLOR_RGB2BGR);

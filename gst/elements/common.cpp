@@ -127,6 +127,19 @@ void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *m)
     m->R1[i] = g.R1.val[i];
 }
 
+/* Copies a cv::Mat into a new GstBuffer (rows packed). */
+GstBuffer *buffer_from_mat(const cv::Mat &m)
+{
+  const gsize row = gsize(m.cols) * m.elemSize();
+  GstBuffer *buf = gst_buffer_new_allocate(nullptr, row * gsize(m.rows), nullptr);
+  GstMapInfo map;
+  gst_buffer_map(buf, &map, GST_MAP_WRITE);
+  cv::Mat dst(m.rows, m.cols, m.type(), map.data, row);
+  m.copyTo(dst);
+  gst_buffer_unmap(buf, &map);
+  return buf;
+}
+
 void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *v,
                         GstBuffer *mask_buffer)
 {
@@ -162,15 +175,9 @@ void silhouette_to_view(const Silhouette &s, GstTreeStereoVegetationView *v,
                                              guint(s.mask.rows), guint(s.mask.step[0]));
     return;
   }
-  const gsize stride = gsize(s.mask.cols);
-  GstBuffer *mask = gst_buffer_new_allocate(nullptr, stride * gsize(s.mask.rows), nullptr);
-  GstMapInfo map;
-  gst_buffer_map(mask, &map, GST_MAP_WRITE);
-  cv::Mat dst(s.mask.rows, s.mask.cols, CV_8UC1, map.data, stride);
-  s.mask.copyTo(dst);
-  gst_buffer_unmap(mask, &map);
+  GstBuffer *mask = buffer_from_mat(s.mask);
   gst_tree_stereo_vegetation_view_set_mask(v, mask, guint(s.mask.cols), guint(s.mask.rows),
-                                           guint(stride));
+                                           guint(s.mask.cols));
   gst_buffer_unref(mask);
 }
 

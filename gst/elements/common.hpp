@@ -26,6 +26,7 @@ struct PixelLayout {
   int channels = 0;
   int r = 0, g = 0, b = 0;
   bool color = false;
+  ChannelOrder order() const { return {r, g, b, channels}; }
 };
 PixelLayout pixel_layout(GstVideoFormat format);
 
@@ -62,6 +63,9 @@ int n_views_of(const GstVideoInfo *info);
 /* Geometry meta <-> lib/ geometry. */
 StereoGeometry geometry_from_meta(const GstTreeStereoGeometryMeta *meta);
 void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *meta);
+
+/* A copy of @m in a new GstBuffer, rows packed (stride = cols * elemSize). */
+GstBuffer *buffer_from_mat(const cv::Mat &m);
 
 /* Silhouette (lib/) -> vegetation view of the meta. Without @mask_buffer the mask is copied into
  * a new GstBuffer. With it, s.mask must already wrap @mask_buffer's memory (the caller let lib/

@@ -257,9 +257,7 @@ static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *, GstV
                       (nullptr));
     return FALSE;
   }
-  st->order.r = layout.r;
-  st->order.g = layout.g;
-  st->order.b = layout.b;
+  st->order = layout.order();
   st->n_views = n_views_of(in_info);
   st->seg_generation = ~guint64(0); // the channel order may have changed
   const cv::Size view(GST_VIDEO_INFO_WIDTH(in_info) / st->n_views, GST_VIDEO_INFO_HEIGHT(in_info));

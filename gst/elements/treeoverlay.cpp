@@ -238,7 +238,7 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
                        outcaps));
     return FALSE;
   }
-  st->order = ChannelOrder{layout.channels, layout.r, layout.g, layout.b};
+  st->order = layout.order();
   st->in_views = treestereo::gst::n_views_of(in_info);
   const int in_w = GST_VIDEO_INFO_WIDTH(in_info), out_w = GST_VIDEO_INFO_WIDTH(out_info);
   st->crop = st->in_views == 2 && out_w == in_w / 2;

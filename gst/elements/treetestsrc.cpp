@@ -233,19 +233,6 @@ static void gst_tree_test_src_get_times(GstBaseSrc *src, GstBuffer *buffer, GstC
   *start = *end = GST_CLOCK_TIME_NONE;
 }
 
-/* Copies a cv::Mat into a new GstBuffer (rows packed). */
-static GstBuffer *buffer_from_mat(const cv::Mat &m)
-{
-  const gsize row = gsize(m.cols) * m.elemSize();
-  GstBuffer *buf = gst_buffer_new_allocate(nullptr, row * gsize(m.rows), nullptr);
-  GstMapInfo map;
-  gst_buffer_map(buf, &map, GST_MAP_WRITE);
-  cv::Mat dst(m.rows, m.cols, m.type(), map.data, row);
-  m.copyTo(dst);
-  gst_buffer_unmap(buf, &map);
-  return buf;
-}
-
 static void attach_truth(GstBuffer *buf, const GroundTruth &t, const SceneParams &p, bool with_maps)
 {
   GstTreeStereoTruth truth = {};
@@ -263,8 +250,8 @@ static void attach_truth(GstBuffer *buf, const GroundTruth &t, const SceneParams
     truth.centroid_m[i] = t.centroid_m[i];
   truth.offset_x_m = t.lateral_offset_m;
   truth.baseline_mm = p.baseline_mm;
-  GstBuffer *depth = with_maps ? buffer_from_mat(t.depth) : nullptr;
-  GstBuffer *mask = with_maps ? buffer_from_mat(t.canopy_mask) : nullptr;
+  GstBuffer *depth = with_maps ? treestereo::gst::buffer_from_mat(t.depth) : nullptr;
+  GstBuffer *mask = with_maps ? treestereo::gst::buffer_from_mat(t.canopy_mask) : nullptr;
   gst_buffer_add_tree_stereo_truth_meta(buf, &truth, depth, mask, guint(t.depth.cols),
                                         guint(t.depth.rows));
   if (depth)

@@ -200,7 +200,7 @@ ChannelOrder channel_order_from_name(const std::string &f)
                                       "xBGR", "RGBA", "BGRA", "ARGB", "ABGR"};
   for (const char *k : known)
     if (f == k)
-      return {int(f.find('R')), int(f.find('G')), int(f.find('B'))};
+      return {int(f.find('R')), int(f.find('G')), int(f.find('B')), int(f.size())};
   throw std::runtime_error("segment: unsupported channel order '" + f +
                            "' (use RGB, BGR, RGBx, BGRx, xRGB, xBGR, RGBA, BGRA, ARGB or ABGR)");
 }

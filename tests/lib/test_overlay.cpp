@@ -114,7 +114,7 @@ TEST(OverlayDraw, ContourAndBoxInTheirColoursInBothViews)
   OverlayScene scene;
   scene.views[LEFT] = silhouette_square(120, 110, 40);
   scene.views[RIGHT] = silhouette_square(100, 110, 40);
-  const ChannelOrder rgb{3, 0, 1, 2};
+  const ChannelOrder rgb{0, 1, 2, 3};
   draw_overlay(img, rgb, scene, only(true, true, false, false, false));
 
   std::vector<cv::Point> drawn;
@@ -148,7 +148,7 @@ TEST(OverlayDraw, MatchDotsColouredByDepthNearWarmFarCool)
   OverlayScene scene;
   scene.matches = {{60, 50, 40, 50, 0}, {200, 150, 190, 150, 0}, {250, 200, 245, 200, 0}};
   scene.match_depth_m = {1.5, 3.0, -1.0}; // near, far, unknown
-  const ChannelOrder rgb{3, 0, 1, 2};
+  const ChannelOrder rgb{0, 1, 2, 3};
   OverlayStyle style = only(false, false, true, false, false);
   style.depth_near_m = 1.5;
   style.depth_far_m = 3.0;
@@ -171,7 +171,7 @@ TEST(OverlayDraw, MatchDotsColouredByDepthNearWarmFarCool)
 
 TEST(OverlayDraw, MatchLinesJoinTheViewsOrShowDisparityOnOneView)
 {
-  const ChannelOrder rgb{3, 0, 1, 2};
+  const ChannelOrder rgb{0, 1, 2, 3};
   OverlayScene scene;
   scene.matches = {{100, 60, 80, 60, 0}};
   scene.match_depth_m = {2.0};
@@ -200,7 +200,7 @@ TEST(OverlayDraw, MatchLinesJoinTheViewsOrShowDisparityOnOneView)
 
 TEST(OverlayDraw, TextPanelChangesOnlyItsCornerAndScalesWithTheFrame)
 {
-  const ChannelOrder rgb{3, 0, 1, 2};
+  const ChannelOrder rgb{0, 1, 2, 3};
   OverlayScene scene;
   scene.text = {"distance 2.03 m", "height 1.20 m"};
   cv::Mat img(480, 2 * 640, CV_8UC3, cv::Scalar(40, 90, 60));
@@ -236,14 +236,14 @@ TEST(OverlayDraw, NothingToDrawLeavesTheFrameAlone)
   cv::Mat img = background(2);
   const cv::Mat before = img.clone();
   OverlayScene scene;
-  draw_overlay(img, ChannelOrder{3, 0, 1, 2}, scene, OverlayStyle());
+  draw_overlay(img, ChannelOrder{0, 1, 2, 3}, scene, OverlayStyle());
   EXPECT_EQ(cv::countNonZero(changed(img, before)), 0);
 
   // Layers switched off draw nothing even with items.
   scene.views[LEFT] = silhouette_square(100, 100, 30);
   scene.matches = {{50, 50, 40, 50, 0}};
   scene.text = {"no tree"};
-  draw_overlay(img, ChannelOrder{3, 0, 1, 2}, scene, only(false, false, false, false, false));
+  draw_overlay(img, ChannelOrder{0, 1, 2, 3}, scene, only(false, false, false, false, false));
   EXPECT_EQ(cv::countNonZero(changed(img, before)), 0);
 }
 
@@ -257,11 +257,11 @@ TEST(OverlayDraw, ChannelOrdersGiveTheSamePicture)
   scene.text = {"distance 2.03 m"};
 
   cv::Mat rgb_img = background(2);
-  draw_overlay(rgb_img, ChannelOrder{3, 0, 1, 2}, scene, OverlayStyle());
+  draw_overlay(rgb_img, ChannelOrder{0, 1, 2, 3}, scene, OverlayStyle());
 
   cv::Mat bgr_img;
   cv::cvtColor(background(2), bgr_img, cv::COLOR_RGB2BGR);
-  draw_overlay(bgr_img, ChannelOrder{3, 2, 1, 0}, scene, OverlayStyle());
+  draw_overlay(bgr_img, ChannelOrder{2, 1, 0, 3}, scene, OverlayStyle());
   cv::Mat back;
   cv::cvtColor(bgr_img, back, cv::COLOR_BGR2RGB);
   EXPECT_EQ(cv::countNonZero(changed(rgb_img, back)), 0);
@@ -270,7 +270,7 @@ TEST(OverlayDraw, ChannelOrdersGiveTheSamePicture)
   cv::Mat bgrx;
   cv::cvtColor(background(2), bgrx, cv::COLOR_RGB2BGRA);
   bgrx.setTo(cv::Scalar(60, 90, 40, 7));
-  draw_overlay(bgrx, ChannelOrder{4, 2, 1, 0}, scene, OverlayStyle());
+  draw_overlay(bgrx, ChannelOrder{2, 1, 0, 4}, scene, OverlayStyle());
   cv::Mat as_rgb;
   cv::cvtColor(bgrx, as_rgb, cv::COLOR_BGRA2RGB);
   EXPECT_EQ(cv::countNonZero(changed(rgb_img, as_rgb)), 0);
@@ -377,7 +377,7 @@ TEST(OverlayBands, DrawnAtTheirRowsInTheirDepthColour)
   OverlayStyle style = only(false, false, false, true, false);
   style.depth_near_m = 1.8;
   style.depth_far_m = 2.8;
-  const ChannelOrder rgb{3, 0, 1, 2};
+  const ChannelOrder rgb{0, 1, 2, 3};
   cv::Mat img = background(2);
   draw_overlay(img, rgb, scene, style);
   // x 60..210 at y (80 + 120)/2 = 100, ticks at x 60 and 210 over rows 80..120
@@ -426,12 +426,12 @@ TEST(OverlayDraw, RejectsImagesItCannotDrawOn)
 {
   OverlayScene scene;
   cv::Mat gray(H, 2 * W, CV_8UC1);
-  EXPECT_THROW(draw_overlay(gray, ChannelOrder{3, 0, 1, 2}, scene, OverlayStyle()),
+  EXPECT_THROW(draw_overlay(gray, ChannelOrder{0, 1, 2, 3}, scene, OverlayStyle()),
                std::runtime_error);
   cv::Mat odd(H, 2 * W + 1, CV_8UC3);
-  EXPECT_THROW(draw_overlay(odd, ChannelOrder{3, 0, 1, 2}, scene, OverlayStyle()),
+  EXPECT_THROW(draw_overlay(odd, ChannelOrder{0, 1, 2, 3}, scene, OverlayStyle()),
                std::runtime_error);
   cv::Mat ok(H, 2 * W, CV_8UC3);
-  EXPECT_THROW(draw_overlay(ok, ChannelOrder{3, 0, 1, 5}, scene, OverlayStyle()),
+  EXPECT_THROW(draw_overlay(ok, ChannelOrder{0, 1, 5, 3}, scene, OverlayStyle()),
                std::runtime_error);
 }

@@ -27,12 +27,8 @@
 
 namespace treestereo {
 
-// Where R, G and B sit in a packed pixel of `channels` bytes. Channels that are none of the
-// three (padding x or alpha A) are written as 255 where something is drawn.
-struct ChannelOrder {
-  int channels = 3;
-  int r = 0, g = 1, b = 2;
-};
+// The pixel layout is a ChannelOrder (types.hpp); channels that are none of R, G, B (padding x
+// or alpha A) are written as 255 where something is drawn.
 
 struct Rgb {
   unsigned char r = 0, g = 0, b = 0;

@@ -42,10 +42,8 @@ enum class KeepMode {
 const char *keep_mode_name(KeepMode mode);             // "largest", "all"
 KeepMode keep_mode_from_name(const std::string &name); // throws on an unknown name
 
-// Position of the R, G and B bytes inside one pixel.
-struct ChannelOrder {
-  int r = 2, g = 1, b = 0; // OpenCV's BGR by default
-};
+// ChannelOrder (types.hpp) gives the position of R, G and B; the channel count comes from the
+// view's type.
 // From a GStreamer-style format name: RGB, BGR, RGBx, BGRx, xRGB, xBGR, RGBA, BGRA, ARGB, ABGR
 // (case-sensitive as GStreamer spells them). Throws std::runtime_error on anything else.
 ChannelOrder channel_order_from_name(const std::string &format);

@@ -9,6 +9,13 @@
 
 namespace treestereo {
 
+// Position of the R, G and B bytes inside one packed pixel of `channels` bytes (3 or 4; the
+// fourth is padding or alpha). Default: OpenCV's BGR.
+struct ChannelOrder {
+  int r = 2, g = 1, b = 0;
+  int channels = 3;
+};
+
 // A pair of rectified views as the stream carries them.
 enum { LEFT = 0, RIGHT = 1 };
 
