@@ -29,9 +29,14 @@ export TREESTEREO_SANITIZER_PRELOAD="$libasan:$libubsan"
 # runtimes into it (and keeps the system plugins' one-time leaks out of the tests' processes).
 export TREESTEREO_REAL_PLUGIN_SCANNER="$(pkg-config --variable=pluginscannerdir gstreamer-1.0)/gst-plugin-scanner"
 export GST_PLUGIN_SCANNER_1_0="$root/tests/sanitizers/gst-plugin-scanner-asan.sh"
+# The script tests run the stock gst-launch/gst-inspect/gst-discoverer: the same preload.
+export PATH="$root/tests/sanitizers/bin:$PATH"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:halt_on_error=1:detect_odr_violation=0:strict_string_checks=0:check_initialization_order=1:fast_unwind_on_malloc=0"
 export LSAN_OPTIONS="suppressions=$root/tests/sanitizers/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
+
+# The soak's 1000 frames take minutes under ASan; 200 still cover every element many times.
+export TREESTEREO_SOAK_FRAMES=${TREESTEREO_SOAK_FRAMES:-200}
 
 start=$(date +%s)
 # install-pkgconfig builds an uninstrumented consumer against the instrumented meta library (the

@@ -322,7 +322,8 @@ double ms_since(std::chrono::steady_clock::time_point t0)
 
 StereoMatcher::StereoMatcher(const MatchParams &params)
     : params_(params), detector_{FeatureDetector(params.detect), FeatureDetector(params.detect)},
-      matcher_(make_matcher(params.matcher))
+      matcher_(make_matcher(params.matcher)),
+      worker_(params.parallel_detect ? std::make_unique<Worker>() : nullptr)
 {
   const RefineParams &r = params.refine_params;
   if (r.half_window < 1 || r.search < 0 || !(r.min_zncc <= 1.0))
@@ -340,8 +341,7 @@ StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,
   auto t0 = std::chrono::steady_clock::now();
   Features fl, fr;
   if (params_.parallel_detect) {
-    auto right_job = std::async(std::launch::async,
-                                [&] { return detector_[RIGHT].detect(right, mask_right); });
+    auto right_job = worker_->run([&] { return detector_[RIGHT].detect(right, mask_right); });
     fl = detector_[LEFT].detect(left, mask_left);
     fr = right_job.get();
   } else {

@@ -6,6 +6,7 @@
  * tree-present=false and carry no figure; the good frames measure their own tree (not the
  * previous one), and the smoother forgot the first tree. A zero-size buffer ends in an error
  * message, not a crash or a hang. */
+#include "message_checks.hpp"
 #include "treestereo/calibration.hpp"
 #include "treestereo/scene.hpp"
 
@@ -101,38 +102,11 @@ static void push(Chain &c, int i, const cv::Mat &rgb, int n)
   fail_unless_equals_int(gst_app_src_push_buffer(c.src[i], buf), GST_FLOW_OK);
 }
 
-/* Fails when any number in @v (recursively through structures and arrays) is NaN or inf. */
-static void expect_finite(const GValue *v, const std::string &where)
-{
-  const GType t = G_VALUE_TYPE(v);
-  if (t == G_TYPE_DOUBLE) {
-    fail_unless(std::isfinite(g_value_get_double(v)), "%s is %g", where.c_str(),
-                g_value_get_double(v));
-  } else if (t == G_TYPE_FLOAT) {
-    fail_unless(std::isfinite(g_value_get_float(v)), "%s is %g", where.c_str(),
-                (double) g_value_get_float(v));
-  } else if (t == GST_TYPE_ARRAY || t == GST_TYPE_LIST) {
-    const guint n = t == GST_TYPE_ARRAY ? gst_value_array_get_size(v) : gst_value_list_get_size(v);
-    for (guint k = 0; k < n; k++)
-      expect_finite(t == GST_TYPE_ARRAY ? gst_value_array_get_value(v, k)
-                                        : gst_value_list_get_value(v, k),
-                    where + "[" + std::to_string(k) + "]");
-  } else if (t == GST_TYPE_STRUCTURE) {
-    const GstStructure *s = gst_value_get_structure(v);
-    for (gint k = 0; k < gst_structure_n_fields(s); k++) {
-      const gchar *name = gst_structure_nth_field_name(s, k);
-      expect_finite(gst_structure_get_value(s, name), where + "." + name);
-    }
-  }
-}
-
+/* Fails when any number in @s, through nested structures and arrays, is NaN or inf. */
 static void expect_structure_finite(const GstStructure *s)
 {
-  for (gint k = 0; k < gst_structure_n_fields(s); k++) {
-    const gchar *name = gst_structure_nth_field_name(s, k);
-    expect_finite(gst_structure_get_value(s, name),
-                  std::string(gst_structure_get_name(s)) + ":" + name);
-  }
+  std::string where;
+  fail_unless(structure_all_finite(s, &where), "%s is not finite", where.c_str());
 }
 
 /* Runs to EOS; returns every element message of the chain. An error fails the test. */

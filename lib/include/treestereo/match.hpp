@@ -6,6 +6,7 @@
 
 #include "treestereo/features.hpp"
 #include "treestereo/types.hpp"
+#include "treestereo/worker.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -161,6 +162,7 @@ private:
   MatchParams params_;
   FeatureDetector detector_[2];
   std::unique_ptr<Matcher> matcher_;
+  std::unique_ptr<Worker> worker_; // detects the right view when parallel_detect
 };
 
 // One-shot convenience around StereoMatcher.
