@@ -324,9 +324,7 @@ StereoMatcher::StereoMatcher(const MatchParams &params)
     : params_(params), detector_{FeatureDetector(params.detect), FeatureDetector(params.detect)},
       matcher_(make_matcher(params.matcher))
 {
-  const RefineParams &r = params.refine_params;
-  if (r.half_window < 1 || r.search < 0 || !(r.min_zncc <= 1.0))
-    throw std::runtime_error("refinement: need half_window >= 1, search >= 0, min_zncc <= 1");
+  check_refine_params(params.refine_params);
 }
 
 StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,

@@ -393,6 +393,8 @@ GST_START_TEST(test_property_ranges)
       {"max-depth", 1.0, 1e7, 10000.0},
       {"contrast-threshold", 0.001, 1.0, 0.04},
       {"scale", 0.0, 1.0, 0.0},
+      {"min-zncc", -1.0, 1.0, 0.8},
+      {"layer-tolerance", -1.0, 100.0, -1.0},
   };
   for (const Range &r : doubles) {
     GParamSpec *p = g_object_class_find_property(klass, r.name);
@@ -414,6 +416,17 @@ GST_START_TEST(test_property_ranges)
   GParamSpec *n = g_object_class_find_property(klass, "nfeatures");
   fail_unless_equals_int(G_PARAM_SPEC_INT(n)->minimum, 0);
   fail_unless_equals_int(G_PARAM_SPEC_INT(n)->default_value, 0);
+  for (const char *name : {"layer-window", "layer-search"}) {
+    GParamSpec *l = g_object_class_find_property(klass, name);
+    fail_unless(l != nullptr && G_IS_PARAM_SPEC_INT(l), "%s", name);
+    fail_unless(l->flags & GST_PARAM_MUTABLE_PLAYING, "%s", name);
+    fail_unless_equals_int(G_PARAM_SPEC_INT(l)->minimum, 1);
+    fail_unless_equals_int(G_PARAM_SPEC_INT(l)->maximum, 32);
+  }
+  fail_unless_equals_int(
+      G_PARAM_SPEC_INT(g_object_class_find_property(klass, "layer-window"))->default_value, 5);
+  fail_unless_equals_int(
+      G_PARAM_SPEC_INT(g_object_class_find_property(klass, "layer-search"))->default_value, 3);
   gboolean mutual, use_mask, refine, post;
   gint method;
   g_object_get(e, "mutual", &mutual, "use-mask", &use_mask, "refine", &refine, "post-messages",
