@@ -2,7 +2,7 @@
 // does, matched with siftmatch's settings (scale 0.5 at 1296x972, 2 px band, disparity range of
 // 0.5..10 m, mutual, refinement), scored against the per-pixel true disparity (correct: |d - d_true|
 // <= 1 px at the left keypoint's pixel). Rows: euclidean / cosine-norm, stereo constraints off /
-// on (with the depth-edge filters off = before, and on = siftmatch's defaults), and the paper's
+// on (with the two-layer test off = before, and on = siftmatch's defaults), and the paper's
 // perturbations of the right view (light -30 % / +30 %, rotation 90 degrees and scale 50 %, the
 // last two without the epipolar constraint). Also: a breakdown of the wrong matches by kind,
 // Middlebury Jadeplant before/after, and timing rows.
@@ -10,7 +10,7 @@
 //   bench-match-scene [--seeds 1,2,3] [--distances 1.8,2.2] [--size 1296x972] [--runs 3]
 //                     [--only table,errors,jadeplant,timing] [--set key=value,...] [--data DIR]
 //
-// --set changes the "filters on" settings (keys: min-zncc, layer-tolerance, layer-half-window,
+// --set changes the settings of the "two-layer test on" rows (keys: min-zncc, layer-tolerance, layer-half-window,
 // layer-search, half-window, search, scale, nfeatures, contrast-threshold, ratio,
 // epipolar-tolerance), to explore other values.
 #include "scene_pairs.hpp"
@@ -21,6 +21,8 @@
 #include "treestereo/stats.hpp"
 
 #include <opencv2/imgproc.hpp>
+
+#include <sys/resource.h>
 
 #include <algorithm>
 #include <cmath>
@@ -92,7 +94,10 @@ std::vector<Perturbation> perturbations()
   };
 }
 
-// The depth-edge filter switched off: the matcher as it was before it.
+// The two-layer test's tolerance of the "on" rows (siftmatch layer-tolerance=0.5).
+constexpr double kLayerTolerance = 0.5;
+
+// The two-layer test switched off: the matcher as it was before it.
 void filters_off(MatchParams &p)
 {
   p.refine_params.layer_tolerance = -1;
@@ -128,7 +133,7 @@ void apply_set(MatchParams &p, const std::string &set)
 MatchParams element_params(const StereoGeometry &g, int width, MatchMethod method, bool filters,
                            const std::string &set)
 {
-  MatchParams p; // lib defaults = siftmatch's defaults, filters included
+  MatchParams p; // lib defaults = siftmatch's defaults
   p.detect.scale = 1.0;
   while (width * p.detect.scale > 648.0)
     p.detect.scale *= 0.5;
@@ -137,10 +142,11 @@ MatchParams element_params(const StereoGeometry &g, int width, MatchMethod metho
   const DisparityRange range = disparity_range_for_depth(g, 500, 10000);
   p.matcher.constraints.min_disparity = range.min;
   p.matcher.constraints.max_disparity = range.max;
-  if (filters)
+  filters_off(p);
+  if (filters) {
+    p.refine_params.layer_tolerance = kLayerTolerance;
     apply_set(p, set);
-  else
-    filters_off(p);
+  }
   return p;
 }
 
@@ -224,16 +230,17 @@ void table(const std::vector<Pair> &pairs, const Options &o)
     std::printf("%g ", d);
   std::printf("m), frame 0, whole views (no mask). Keypoints and matches: mean per pair; "
               "min: the pair with the fewest. ms: median of %d run(s) per pair of the whole "
-              "step (detection of both views, matching, refinement, filters).\n\n",
-              o.runs);
-  std::printf("| condition | method | constraints | depth-edge filters | keypoints L | keypoints R "
+              "step (detection of both views, matching, refinement, two-layer test). Two-layer "
+              "test on: layer-tolerance=%g%s%s.\n\n",
+              o.runs, kLayerTolerance, o.set.empty() ? "" : ", then --set ", o.set.c_str());
+  std::printf("| condition | method | constraints | two-layer test | keypoints L | keypoints R "
               "| matches | min matches | evaluated | wrong | correct %% | ms |\n"
               "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   const double n = double(pairs.size());
   for (const Perturbation &pert : perturbations())
     for (MatchMethod method : {MatchMethod::Euclidean, MatchMethod::CosineNorm})
       for (int variant = 0; variant < 3; ++variant) {
-        // 0: constraints off; 1: on, filters off (before); 2: on, filters on (siftmatch now)
+        // 0: constraints off; 1: on, two-layer test off (the default); 2: on, test on
         if (variant > 0 && !pert.rectified)
           continue;
         MatchParams p = element_params(pairs[0].scene.geometry, o.size.width, method,
@@ -264,6 +271,23 @@ bool occluded(const cv::Mat &d_true, int x, int y, float t)
   return false;
 }
 
+// Chebyshev distance (1..3) from (x, y) to the nearest pixel whose true disparity is within
+// 1 px of d; 0 when there is none. Non-finite truth is unknown.
+int edge_ring(const cv::Mat &dt, int x, int y, float d)
+{
+  for (int rr = 1; rr <= 3; ++rr)
+    for (int dy = -rr; dy <= rr; ++dy)
+      for (int dx = -rr; dx <= rr; ++dx) {
+        const int xx = x + dx, yy = y + dy;
+        if (xx < 0 || yy < 0 || xx >= dt.cols || yy >= dt.rows)
+          continue;
+        const float tn = dt.at<float>(yy, xx);
+        if (std::isfinite(tn) && std::abs(d - tn) <= 1.0f)
+          return rr;
+      }
+  return 0;
+}
+
 // The wrong matches of the constrained rows, by kind.
 void errors(const std::vector<Pair> &pairs, const Options &o)
 {
@@ -274,7 +298,7 @@ void errors(const std::vector<Pair> &pairs, const Options &o)
               "keypoint's pixel (a background pixel given the foreground's disparity); occluded: "
               "the keypoint's pixel is hidden in the right view; near miss: 1-2 px off; other: "
               "the rest.\n\n");
-  std::printf("| method | depth-edge filters | evaluated | wrong | edge, nearer | edge, farther | "
+  std::printf("| method | two-layer test | evaluated | wrong | edge, nearer | edge, farther | "
               "of which occluded | edge at 1 / 2 / 3 px | near miss | other |\n"
               "|---|---|---|---|---|---|---|---|---|---|\n");
   for (MatchMethod method : {MatchMethod::Euclidean, MatchMethod::CosineNorm})
@@ -288,7 +312,7 @@ void errors(const std::vector<Pair> &pairs, const Options &o)
             StereoMatcher(p).run(pair.scene.view[LEFT], pair.scene.view[RIGHT], cv::Mat(), cv::Mat());
         const cv::Mat &dt = pair.scene.d_true;
         for (const StereoMatch &m : r.matches) {
-          const int x = cvRound(m.xl), y = cvRound(m.yl);
+          const int x = int(std::lround(m.xl)), y = int(std::lround(m.yl));
           const float t = dt.at<float>(y, x);
           if (std::isnan(t))
             continue;
@@ -297,31 +321,7 @@ void errors(const std::vector<Pair> &pairs, const Options &o)
           if (std::abs(d - t) <= 1.0f)
             continue;
           ++wrong;
-          // Chebyshev distance to the nearest pixel whose truth the match has, up to 3.
-          int ring = 0;
-          for (int rr = 1; rr <= 3 && ring == 0; ++rr)
-            for (int dy = -rr; dy <= rr && ring == 0; ++dy)
-              for (int dx = -rr; dx <= rr && ring == 0; ++dx) {
-                const int xx = x + dx, yy = y + dy;
-                if (xx < 0 || yy < 0 || xx >= dt.cols || yy >= dt.rows)
-                  continue;
-                const float tn = dt.at<float>(yy, xx);
-                if (!std::isnan(tn) && std::abs(d - tn) <= 1.0f)
-                  ring = rr;
-              }
-          if (std::getenv("DUMP") && ring > 0 && d > t) {
-            std::printf("kp (%.2f,%.2f) d=%.2f t=%.2f ring=%d\n", m.xl, m.yl, d, t, ring);
-            for (int dy = -4; dy <= 4; ++dy) {
-              for (int dx = -4; dx <= 4; ++dx) {
-                const float tn = dt.at<float>(y + dy, x + dx);
-                std::printf("%6.1f", tn);
-              }
-              std::printf("   ");
-              for (int dx = -4; dx <= 4; ++dx)
-                std::printf("%4d", int(pair.scene.view[LEFT].at<cv::Vec3b>(y + dy, x + dx)[1]));
-              std::printf("\n");
-            }
-          }
+          const int ring = edge_ring(dt, x, y, d);
           if (ring > 0) {
             (d > t ? edge_near : edge_far) += 1;
             ++at_ring[ring - 1];
@@ -341,7 +341,7 @@ void errors(const std::vector<Pair> &pairs, const Options &o)
 }
 
 // Middlebury Jadeplant (quarter size) as lib's test and siftmatch's element test run it: scale 1,
-// 1 px band, 0..ndisp, mutual, refinement; before and with the filters.
+// 1 px band, 0..ndisp, mutual, refinement; without and with the two-layer test.
 void jadeplant(const Options &o)
 {
   const std::string dir = o.data + "/middlebury2014-quarter/Jadeplant";
@@ -351,8 +351,11 @@ void jadeplant(const Options &o)
   }
   const MiddleburyScene s = load_middlebury_scene(dir);
   std::printf("\n## Middlebury Jadeplant (quarter size, scale 1, 1 px band, 0..ndisp, mutual, "
-              "refinement)\n\n| method | depth-edge filters | keypoints L/R | matches | evaluated "
-              "| wrong | correct %% |\n|---|---|---|---|---|---|---|\n");
+              "refinement). Wrong by kind: edge = the matched disparity is the truth of a pixel "
+              "within 3 px (nearer: the match is nearer than the keypoint's own truth); other: the "
+              "rest.\n\n| method | two-layer test | keypoints L/R | matches | evaluated "
+              "| wrong | correct %% | edge, nearer | edge, farther | other |\n"
+              "|---|---|---|---|---|---|---|---|---|---|\n");
   for (MatchMethod method : {MatchMethod::Euclidean, MatchMethod::CosineNorm})
     for (bool filters : {false, true}) {
       MatchParams p;
@@ -360,29 +363,54 @@ void jadeplant(const Options &o)
       p.matcher.constraints.epipolar_tolerance = 1.0;
       p.matcher.constraints.min_disparity = 0;
       p.matcher.constraints.max_disparity = s.calib.ndisp;
-      if (filters)
+      filters_off(p);
+      if (filters) {
+        p.refine_params.layer_tolerance = kLayerTolerance;
         apply_set(p, o.set);
-      else
-        filters_off(p);
+      }
       const StereoMatchResult r = match_stereo(s.left, s.right, cv::Mat(), cv::Mat(), p);
       const MatchAccuracy acc = evaluate_matches(r.matches, s.disp_gt, s.mask_nocc, 1.0);
-      std::printf("| %s | %s | %zu/%zu | %zu | %zu | %zu | %.2f |\n", match_method_name(method),
-                  filters ? "on" : "off", r.stats.keypoints[0], r.stats.keypoints[1],
-                  r.matches.size(), acc.evaluated, acc.wrong(), 100.0 * acc.correct_rate());
+      std::size_t nearer = 0, farther = 0, other = 0;
+      for (const StereoMatch &m : r.matches) {
+        const int x = int(std::lround(m.xl)), y = int(std::lround(m.yl));
+        if (x < 0 || y < 0 || x >= s.disp_gt.cols || y >= s.disp_gt.rows ||
+            (!s.mask_nocc.empty() && s.mask_nocc.at<std::uint8_t>(y, x) != 255))
+          continue;
+        const float t = s.disp_gt.at<float>(y, x), d = m.disparity();
+        if (!std::isfinite(t) || (std::abs(d - t) <= 1.0f && std::abs(m.yr - m.yl) <= 1.0f))
+          continue;
+        if (edge_ring(s.disp_gt, x, y, d) > 0)
+          (d > t ? nearer : farther) += 1;
+        else
+          ++other;
+      }
+      std::printf("| %s | %s | %zu/%zu | %zu | %zu | %zu | %.2f | %zu | %zu | %zu |\n",
+                  match_method_name(method), filters ? "on" : "off", r.stats.keypoints[0],
+                  r.stats.keypoints[1], r.matches.size(), acc.evaluated, acc.wrong(),
+                  100.0 * acc.correct_rate(), nearer, farther, other);
       std::fflush(stdout);
     }
+}
+
+double cpu_ms()
+{
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return (double(u.ru_utime.tv_sec) + double(u.ru_stime.tv_sec)) * 1e3 +
+         (double(u.ru_utime.tv_usec) + double(u.ru_stime.tv_usec)) * 1e-3;
 }
 
 // The whole siftmatch step (both views detected concurrently, matching, refinement, filters),
 // on treetestsrc pairs with the true canopy mask (as exgsegment's would give) and without.
 void timing(const Options &o)
 {
-  std::printf("\n## Timing of the siftmatch step (euclidean, constraints and filters on)\n\n"
+  std::printf("\n## Timing of the siftmatch step (euclidean, constraints and two-layer test on)\n\n"
               "Seed 1 at 2.0 m; median of %d runs after one warm-up; canopy = the rendered "
-              "canopy mask, rectified (stands in for exgsegment's).\n\n"
+              "canopy mask, rectified (stands in for exgsegment's); CPU ms = user + system time "
+              "of the process during the run (both threads; independent of other load).\n\n"
               "| size | scale | nfeatures | contrast | mask | keypoints L/R | matches | correct %% "
-              "| detect ms | match ms | refine ms | total ms |\n"
-              "|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+              "| detect ms | match ms | refine ms | total ms | CPU ms |\n"
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
               o.runs);
   struct Setting {
     cv::Size size;
@@ -416,9 +444,11 @@ void timing(const Options &o)
       const StereoMatcher m(p);
       const cv::Mat ml = masked ? pair.mask[LEFT] : cv::Mat(), mr = masked ? pair.mask[RIGHT] : cv::Mat();
       StereoMatchResult r = m.run(pair.view[LEFT], pair.view[RIGHT], ml, mr); // warm-up
-      std::vector<double> det, mat, ref, tot;
+      std::vector<double> det, mat, ref, tot, cpu;
       for (int i = 0; i < o.runs; ++i) {
+        const double c0 = cpu_ms();
         r = m.run(pair.view[LEFT], pair.view[RIGHT], ml, mr);
+        cpu.push_back(cpu_ms() - c0);
         det.push_back(r.stats.detect_ms);
         mat.push_back(r.stats.match_ms);
         ref.push_back(r.stats.refine_ms);
@@ -426,11 +456,11 @@ void timing(const Options &o)
       }
       const MatchAccuracy acc = evaluate_matches(r.matches, gt, nocc, 1.0);
       std::printf("| %dx%d | %.2g | %d | %.2g | %s | %zu/%zu | %zu | %.2f | %.1f | %.1f | %.1f | "
-                  "%.1f |\n",
+                  "%.1f | %.0f |\n",
                   st.size.width, st.size.height, st.scale, st.nfeatures, st.contrast,
                   masked ? "canopy" : "no", r.stats.keypoints[0], r.stats.keypoints[1],
                   r.matches.size(), 100.0 * acc.correct_rate(), median(det), median(mat),
-                  median(ref), median(tot));
+                  median(ref), median(tot), median(cpu));
       std::fflush(stdout);
     }
   }
