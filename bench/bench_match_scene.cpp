@@ -12,7 +12,7 @@
 //
 // --set changes the settings of the "two-layer test on" rows (keys: min-zncc, layer-tolerance, layer-half-window,
 // layer-search, half-window, search, scale, nfeatures, contrast-threshold, ratio,
-// epipolar-tolerance), to explore other values.
+// epipolar-tolerance, mutual), to explore other values.
 #include "scene_pairs.hpp"
 #include "sweep.hpp"
 #include "treestereo/data_dir.hpp"
@@ -125,6 +125,7 @@ void apply_set(MatchParams &p, const std::string &set)
     else if (k == "contrast-threshold") p.detect.contrast_threshold = v;
     else if (k == "ratio") p.matcher.ratio = v;
     else if (k == "epipolar-tolerance") p.matcher.constraints.epipolar_tolerance = v;
+    else if (k == "mutual") p.matcher.constraints.mutual = v != 0;
     else throw std::runtime_error("--set: unknown key '" + k + "'");
   }
 }
