@@ -3,6 +3,7 @@
 // truth disparities scaled alike), whole views and a canopy mask, at several detection scales.
 //
 //   ./build/bench/bench-siftmatch [data dir] [runs]
+#include "scene_pairs.hpp"
 #include "treestereo/data_dir.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/middlebury.hpp"
@@ -56,36 +57,6 @@ void masks(const Scene &s, cv::Mat &ml, cv::Mat &mr)
   mr(cv::Rect(x0, box.y, box.x + box.width - x0, box.height)).setTo(255);
 }
 
-// The true disparity of every rectified left pixel: the rendered depth made a 3D point along the
-// pixel's ray, carried to the rectified grid by the rectification's own map (nearest: no mixing of
-// foreground and background at edges), rotated into the rectified frame, d = fx b / Z + doffs.
-// NaN where the ray hits nothing.
-cv::Mat rectified_truth_disparity(const SceneRenderer &r, const StereoRectification &rect,
-                                  const GroundTruth &t)
-{
-  const cv::Mat &rays = r.normalized_rays(LEFT);
-  cv::Mat pts(t.depth.size(), CV_32FC3);
-  for (int y = 0; y < pts.rows; ++y)
-    for (int x = 0; x < pts.cols; ++x) {
-      const float z = t.depth.at<float>(y, x);
-      const cv::Vec2d n = rays.at<cv::Vec2d>(y, x);
-      pts.at<cv::Vec3f>(y, x) = z > 0 ? cv::Vec3f(float(n[0] * z), float(n[1] * z), z)
-                                      : cv::Vec3f(0, 0, 0);
-    }
-  cv::Mat rp;
-  cv::remap(pts, rp, rect.map1[LEFT], rect.map2[LEFT], cv::INTER_NEAREST, cv::BORDER_CONSTANT);
-  const StereoGeometry &g = rect.geometry;
-  cv::Mat d(rp.size(), CV_32F);
-  for (int y = 0; y < rp.rows; ++y)
-    for (int x = 0; x < rp.cols; ++x) {
-      const cv::Vec3f p = rp.at<cv::Vec3f>(y, x);
-      const cv::Vec3d q = g.R1 * cv::Vec3d(p[0], p[1], p[2]);
-      d.at<float>(y, x) = p[2] > 0 ? float(g.fx * g.baseline_mm / q[2] + g.doffs())
-                                   : std::numeric_limits<float>::quiet_NaN();
-    }
-  return d;
-}
-
 // Table 1 on SceneRenderer pairs: five trees at `size`, rectified as stereorectify does.
 void scene_table(cv::Size size, int runs)
 {
@@ -100,20 +71,10 @@ void scene_table(cv::Size size, int runs)
         SceneParams sp;
         sp.seed = std::uint64_t(seed);
         sp.image_size = size;
-        const SceneRenderer renderer(sp);
-        const StereoRectification rect =
-            compute_rectification(renderer.calibration(), size, -1, true);
-        cv::Mat rgb[2], view[2], mask[2];
-        GroundTruth truth[2];
-        for (int v = 0; v < 2; ++v) {
-          renderer.render(v, 0, rgb[v], &truth[v]);
-          cv::Mat bgr;
-          cv::cvtColor(rgb[v], bgr, cv::COLOR_RGB2BGR);
-          rectify_view(rect, v, bgr, view[v]);
-          cv::remap(truth[v].canopy_mask, mask[v], rect.map1[v], rect.map2[v], cv::INTER_NEAREST);
-        }
-        const cv::Mat d_true = rectified_truth_disparity(renderer, rect, truth[LEFT]);
-        const DisparityRange range = disparity_range_for_depth(rect.geometry, 500, 10000);
+        const bench::ScenePair pair = bench::render_pair(sp);
+        const cv::Mat *view = pair.view, *mask = pair.mask;
+        const cv::Mat &d_true = pair.d_true;
+        const DisparityRange range = disparity_range_for_depth(pair.geometry, 500, 10000);
         MatchParams p; // the element's defaults; scale 0.5 = its automatic scale at 1296
         p.detect.scale = size.width > 648 ? (size.width > 1296 ? 0.25 : 0.5) : 1.0;
         p.matcher.method = method;

@@ -5,8 +5,9 @@
  * Matches SIFT features between the two rectified views of a side-by-side stereo frame (from
  * stereorectify) under the stereo constraints: an epipolar band around the keypoint's row, a
  * disparity range (by default derived from a depth range and the frame's
- * #GstTreeStereoGeometryMeta), a left-right consistency check and sub-pixel refinement of each
- * disparity by correlation at full resolution. Adds a #GstTreeStereoMatchesMeta (coordinates in
+ * #GstTreeStereoGeometryMeta), a left-right consistency check, sub-pixel refinement of each
+ * disparity by correlation at full resolution and a two-layer test that drops keypoints beside
+ * a depth edge (see #siftmatch:layer-tolerance). Adds a #GstTreeStereoMatchesMeta (coordinates in
  * each view's own pixels) and posts a `siftmatch` element message with the keypoint counts,
  * the match count, the keypoints or matches dropped by each constraint and the wall times.
  *
@@ -59,6 +60,10 @@ using namespace treestereo;
 #define DEFAULT_SCALE 0.0
 #define DEFAULT_USE_MASK TRUE
 #define DEFAULT_REFINE TRUE
+#define DEFAULT_MIN_ZNCC 0.8
+#define DEFAULT_LAYER_TOLERANCE (-1.0)
+#define DEFAULT_LAYER_WINDOW 5
+#define DEFAULT_LAYER_SEARCH 3
 #define DEFAULT_POST_MESSAGES TRUE
 /* scale=0 (automatic) detects on a copy at most this wide: SIFT upsamples it 2x internally, so
  * its base octave is then at most 1296 px wide whatever the camera's resolution. */
@@ -81,6 +86,10 @@ enum {
   PROP_SCALE,
   PROP_USE_MASK,
   PROP_REFINE,
+  PROP_MIN_ZNCC,
+  PROP_LAYER_TOLERANCE,
+  PROP_LAYER_WINDOW,
+  PROP_LAYER_SEARCH,
   PROP_POST_MESSAGES,
 };
 
@@ -101,6 +110,10 @@ struct Settings {
   double scale = DEFAULT_SCALE;
   bool use_mask = DEFAULT_USE_MASK;
   bool refine = DEFAULT_REFINE;
+  double min_zncc = DEFAULT_MIN_ZNCC;
+  double layer_tolerance = DEFAULT_LAYER_TOLERANCE;
+  int layer_window = DEFAULT_LAYER_WINDOW;
+  int layer_search = DEFAULT_LAYER_SEARCH;
   bool post_messages = DEFAULT_POST_MESSAGES;
   guint64 generation = 0; // bumped by every change that needs a new StereoMatcher
 };
@@ -231,6 +244,10 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   p.matcher.constraints.max_disparity = key.max_disparity;
   p.matcher.constraints.mutual = s.mutual;
   p.refine = s.refine;
+  p.refine_params.min_zncc = s.min_zncc;
+  p.refine_params.layer_tolerance = s.layer_tolerance;
+  p.refine_params.layer_half_window = s.layer_window;
+  p.refine_params.layer_search = s.layer_search;
   p.parallel_detect = true;
   st->matcher = std::make_unique<StereoMatcher>(p);
   st->key = key;
@@ -456,6 +473,18 @@ static void gst_sift_match_set_property(GObject *object, guint prop_id, const GV
   case PROP_REFINE:
     s.refine = g_value_get_boolean(value);
     break;
+  case PROP_MIN_ZNCC:
+    s.min_zncc = g_value_get_double(value);
+    break;
+  case PROP_LAYER_TOLERANCE:
+    s.layer_tolerance = g_value_get_double(value);
+    break;
+  case PROP_LAYER_WINDOW:
+    s.layer_window = g_value_get_int(value);
+    break;
+  case PROP_LAYER_SEARCH:
+    s.layer_search = g_value_get_int(value);
+    break;
   case PROP_POST_MESSAGES:
     s.post_messages = g_value_get_boolean(value);
     return; // no new matcher needed
@@ -514,6 +543,18 @@ static void gst_sift_match_get_property(GObject *object, guint prop_id, GValue *
     break;
   case PROP_REFINE:
     g_value_set_boolean(value, s.refine);
+    break;
+  case PROP_MIN_ZNCC:
+    g_value_set_double(value, s.min_zncc);
+    break;
+  case PROP_LAYER_TOLERANCE:
+    g_value_set_double(value, s.layer_tolerance);
+    break;
+  case PROP_LAYER_WINDOW:
+    g_value_set_int(value, s.layer_window);
+    break;
+  case PROP_LAYER_SEARCH:
+    g_value_set_int(value, s.layer_search);
     break;
   case PROP_POST_MESSAGES:
     g_value_set_boolean(value, s.post_messages);
@@ -615,6 +656,27 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
                   "Refine each disparity to sub-pixel by correlation at full resolution and "
                   "drop matches without a clear correlation peak",
                   DEFAULT_REFINE);
+  install_double(gobject_class, PROP_MIN_ZNCC, "min-zncc", "Minimum ZNCC",
+                 "Refinement: drop a match whose 7x7 correlation peak is below this", -1.0, 1.0,
+                 DEFAULT_MIN_ZNCC);
+  install_double(gobject_class, PROP_LAYER_TOLERANCE, "layer-tolerance", "Layer tolerance",
+                 "Two-layer test after refinement: the four quadrants of the layer window and "
+                 "its 3x3 centre, each correlated on its own, must all peak within this many px "
+                 "of the refined disparity (rejects keypoints beside a depth edge that took the "
+                 "foreground's disparity); negative = off (needs refine)",
+                 -1.0, 100.0, DEFAULT_LAYER_TOLERANCE);
+  g_object_class_install_property(
+      gobject_class, PROP_LAYER_WINDOW,
+      g_param_spec_int("layer-window", "Layer window",
+                       "Two-layer test: half size of its window (px at full resolution; "
+                       "5 = 11x11, quadrants of 6x6)",
+                       1, 32, DEFAULT_LAYER_WINDOW, PROP_FLAGS));
+  g_object_class_install_property(
+      gobject_class, PROP_LAYER_SEARCH,
+      g_param_spec_int("layer-search", "Layer search",
+                       "Two-layer test: how far (px) each part is searched around the refined "
+                       "disparity",
+                       1, 32, DEFAULT_LAYER_SEARCH, PROP_FLAGS));
   install_boolean(gobject_class, PROP_POST_MESSAGES, "post-messages", "Post messages",
                   "Post a siftmatch element message per frame", DEFAULT_POST_MESSAGES);
 

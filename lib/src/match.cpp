@@ -325,9 +325,7 @@ StereoMatcher::StereoMatcher(const MatchParams &params)
       matcher_(make_matcher(params.matcher)),
       worker_(params.parallel_detect ? std::make_unique<Worker>() : nullptr)
 {
-  const RefineParams &r = params.refine_params;
-  if (r.half_window < 1 || r.search < 0 || !(r.min_zncc <= 1.0))
-    throw std::runtime_error("refinement: need half_window >= 1, search >= 0, min_zncc <= 1");
+  check_refine_params(params.refine_params);
 }
 
 StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,

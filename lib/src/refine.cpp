@@ -111,19 +111,112 @@ double gauss_newton_x(const std::vector<float> &lc, double lnorm, const cv::Mat 
   return std::abs(xr - x0) <= 1.0 ? xr : x0;
 }
 
+// Sub-pixel position of the best match of the zero-mean template `lc` (centred on a pixel of the
+// other view) along row `yi` of `img`, searched at integer centres xc-S..xc+S: the integer peak,
+// a parabola through it and its neighbours, then Gauss-Newton. False when there is no peak of at
+// least min_zncc inside the range.
+bool best_position(const std::vector<float> &lc, double lnorm, const cv::Mat &img, int xc, int yi,
+                   int h, int S, double min_zncc, std::vector<double> &scores, double &x_out)
+{
+  scores.resize(std::size_t(2 * S + 3));
+  // Offsets -S-1..S+1: the outer two only serve as parabola neighbours.
+  for (int k = -S - 1; k <= S + 1; ++k)
+    scores[std::size_t(k + S + 1)] = zncc(lc, lnorm, img, xc + k, yi, h);
+  const int best = int(std::max_element(scores.begin(), scores.end()) - scores.begin()) - S - 1;
+  const double c0 = scores[std::size_t(best + S + 1)];
+  if (std::abs(best) > S || c0 < min_zncc)
+    return false; // the peak lies outside the search range, or there is no clear peak
+  const double cm = scores[std::size_t(best + S)], cp = scores[std::size_t(best + S + 2)];
+  const double curv = cm - 2.0 * c0 + cp;
+  const double delta = curv < 0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
+  x_out = gauss_newton_x(lc, lnorm, img, double(xc + best) + delta, yi, h);
+  return true;
+}
+
+// ZNCC of the left pixels (xi + dx, yi + dy), dx in [x0, x1], dy in [y0, y1], against the right
+// view at (xr + dx, yi + dy), xr sub-pixel (linear interpolation along the row). -1 when either
+// side is flat.
+double zncc_sub(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, int x0, int x1,
+                int y0, int y1)
+{
+  double sl = 0, sr = 0, sll = 0, srr = 0, slr = 0;
+  int n = 0;
+  for (int dy = y0; dy <= y1; ++dy) {
+    const std::uint8_t *lrow = L.ptr<std::uint8_t>(yi + dy);
+    const std::uint8_t *rrow = R.ptr<std::uint8_t>(yi + dy);
+    for (int dx = x0; dx <= x1; ++dx) {
+      const double a = lrow[xi + dx], b = sample(rrow, xr + dx);
+      sl += a;
+      sr += b;
+      sll += a * a;
+      srr += b * b;
+      slr += a * b;
+      ++n;
+    }
+  }
+  const double vl = sll - sl * sl / n, vr = srr - sr * sr / n;
+  if (vl <= 1e-9 || vr <= 1e-9)
+    return -1.0;
+  return (slr - sl * sr / n) / std::sqrt(vl * vr);
+}
+
+// Where the ZNCC of one sub-window (offsets [x0, x1] x [y0, y1] around the left pixel) peaks
+// among right positions xr + k, k = -range..range, refined by a parabola; relative to xr (px).
+double sub_peak(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, int x0, int x1,
+                int y0, int y1, int range, std::vector<double> &scores)
+{
+  scores.resize(std::size_t(2 * range + 1));
+  for (int k = -range; k <= range; ++k)
+    scores[std::size_t(k + range)] = zncc_sub(L, R, xi, yi, xr + k, x0, x1, y0, y1);
+  const int b = int(std::max_element(scores.begin(), scores.end()) - scores.begin());
+  if (b == 0 || b == 2 * range)
+    return double(b - range); // at the border: no parabola
+  const double cm = scores[std::size_t(b - 1)], c0 = scores[std::size_t(b)],
+               cp = scores[std::size_t(b + 1)];
+  const double curv = cm - 2.0 * c0 + cp;
+  return double(b - range) + (curv < 0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0);
+}
+
+// The two-layer test: the four quadrants of the (2h+1)^2 window (each with the centre row and
+// column) and its 3x3 centre, each searched on its own within +-range px, must all peak within
+// `tol` px of the refined position xr. A patch that straddles a depth edge is matched at the
+// disparity of its dominant (textured) layer; a part on the other layer then peaks at its own
+// disparity, or anywhere when it is flat. The 3x3 centre is what the match's pixel stands on.
+bool layers_agree(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, int h, int range,
+                  double tol, std::vector<double> &scores)
+{
+  const int boxes[5][4] = {
+      {-h, 0, -h, 0}, {0, h, -h, 0}, {-h, 0, 0, h}, {0, h, 0, h}, {-1, 1, -1, 1}};
+  for (const auto &b : boxes)
+    if (!(std::abs(sub_peak(L, R, xi, yi, xr, b[0], b[1], b[2], b[3], range, scores)) <= tol))
+      return false;
+  return true;
+}
+
 } // namespace
+
+void check_refine_params(const RefineParams &p)
+{
+  if (p.half_window < 1 || p.search < 0)
+    throw std::runtime_error("refinement: need half_window >= 1 and search >= 0");
+  if (!(p.min_zncc <= 1.0))
+    throw std::runtime_error("refinement: min_zncc must be <= 1");
+  if (std::isnan(p.layer_tolerance))
+    throw std::runtime_error("refinement: layer_tolerance must be a number (negative = off)");
+  if (p.layer_half_window < 1 || p.layer_search < 1)
+    throw std::runtime_error("refinement: need layer_half_window >= 1 and layer_search >= 1");
+}
 
 std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
                            std::vector<StereoMatch> &matches, const RefineParams &p)
 {
   if (left.size() != right.size())
     throw std::runtime_error("refinement: the two views must have the same size");
-  if (p.half_window < 1 || p.search < 0)
-    throw std::runtime_error("refinement: need half_window >= 1 and search >= 0");
+  check_refine_params(p);
   const cv::Mat L = to_gray8(left), R = to_gray8(right);
   const int h = p.half_window, S = p.search;
   std::vector<float> lc;
-  std::vector<double> scores(std::size_t(2 * S + 3));
+  std::vector<double> scores;
   std::size_t kept = 0;
   for (const StereoMatch &m0 : matches) {
     StereoMatch m = m0;
@@ -131,21 +224,18 @@ std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
     const int xc = int(std::lround(double(xi) - m.disparity())); // right estimate on the pixel grid
     const bool inside = yi - h >= 0 && yi + h < L.rows && xi - h >= 0 && xi + h < L.cols &&
                         xc - S - 1 - h >= 0 && xc + S + 1 + h < R.cols;
-    double lnorm = 0;
-    if (!inside || !centred_patch(L, xi, yi, h, lc, lnorm))
+    double lnorm = 0, xr = 0;
+    if (!inside || !centred_patch(L, xi, yi, h, lc, lnorm) ||
+        !best_position(lc, lnorm, R, xc, yi, h, S, p.min_zncc, scores, xr))
       continue;
-    // Offsets -S-1..S+1: the outer two only serve as parabola neighbours.
-    for (int k = -S - 1; k <= S + 1; ++k)
-      scores[std::size_t(k + S + 1)] = zncc(lc, lnorm, R, xc + k, yi, h);
-    const int best = int(std::max_element(scores.begin(), scores.end()) - scores.begin()) - S - 1;
-    const double c0 = scores[std::size_t(best + S + 1)];
-    if (std::abs(best) > S || c0 < p.min_zncc)
-      continue; // the peak lies outside the search range, or there is no clear peak
-    const double cm = scores[std::size_t(best + S)], cp = scores[std::size_t(best + S + 2)];
-    const double curv = cm - 2.0 * c0 + cp;
-    const double delta = curv < 0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
-    const double xr = gauss_newton_x(lc, lnorm, R, double(xc + best) + delta, yi, h);
     const double d = double(xi) - xr;
+    if (p.layer_tolerance >= 0) {
+      const int hl = p.layer_half_window, rs = p.layer_search;
+      if (yi - hl < 0 || yi + hl >= L.rows || xi - hl < 0 || xi + hl >= L.cols ||
+          xr - hl - rs < 0 || xr + hl + rs + 1 >= R.cols ||
+          !layers_agree(L, R, xi, yi, xr, hl, rs, p.layer_tolerance, scores))
+        continue;
+    }
     m.xr = float(double(m.xl) - d);
     m.yr = m.yl;
     matches[kept++] = m;

@@ -332,6 +332,73 @@ TEST(Refine, RejectsMatchWithoutCorrelationPeak)
   EXPECT_TRUE(m.empty());
 }
 
+// A two-layer pair: a weakly textured background at disparity 10 and a strongly textured
+// vertical band (x in [100, 140) of the left view) at disparity 16 in front of it; each layer's
+// texture is attached to its surface, so the right view shows the band shifted by 16 px over the
+// background shifted by 10 px (the band hides part of the background, as in a real scene).
+struct TwoLayers {
+  static constexpr int kBand0 = 100, kBand1 = 140;
+  static constexpr double kBack = 10, kFront = 16;
+  cv::Mat left, right;
+  TwoLayers()
+  {
+    const cv::Size size(240, 120);
+    cv::Mat back = texture(cv::Size(size.width + 40, size.height), 51);
+    back.convertTo(back, -1, 0.12, 60); // a dim, low-contrast leaf in shadow
+    const cv::Mat front = texture(cv::Size(size.width + 40, size.height), 52);
+    left.create(size, CV_8U);
+    right.create(size, CV_8U);
+    for (int y = 0; y < size.height; ++y)
+      for (int x = 0; x < size.width; ++x) {
+        left.at<std::uint8_t>(y, x) = (x >= kBand0 && x < kBand1) ? front.at<std::uint8_t>(y, x)
+                                                                  : back.at<std::uint8_t>(y, x);
+        // Right pixel x sees the band point x + kFront when that lies in the band, else the
+        // background point x + kBack.
+        const int xf = x + int(kFront);
+        right.at<std::uint8_t>(y, x) = (xf >= kBand0 && xf < kBand1)
+                                           ? front.at<std::uint8_t>(y, xf)
+                                           : back.at<std::uint8_t>(y, x + int(kBack));
+      }
+  }
+};
+
+TEST(Refine, TwoLayerTestRejectsBackgroundPixelGivenTheForegroundDisparity)
+{
+  const TwoLayers s;
+  const float y = 60;
+  // Known bad: the background pixel just right of the band's edge, matched at the band's
+  // disparity (the band's texture dominates its 7x7 patch). Good: the band's middle and the
+  // background far from the band, each at its own disparity.
+  const float bad_x = float(TwoLayers::kBand1) + 1;
+  const std::vector<StereoMatch> input{
+      {bad_x, y, bad_x - float(TwoLayers::kFront), y, 0.f},
+      {120.f, y, 120.f - float(TwoLayers::kFront), y, 0.f},
+      {40.f, y, 40.f - float(TwoLayers::kBack), y, 0.f},
+      {200.f, y, 200.f - float(TwoLayers::kBack), y, 0.f},
+  };
+  RefineParams off;
+  std::vector<StereoMatch> m = input;
+  refine_matches(s.left, s.right, m, off);
+  // Without the test the bad match survives refinement at the foreground's disparity: the case
+  // the test exists for.
+  ASSERT_EQ(m.size(), 4u);
+  EXPECT_NEAR(m[0].disparity(), TwoLayers::kFront, 1.0);
+
+  RefineParams on;
+  on.layer_tolerance = 0.5;
+  m = input;
+  EXPECT_EQ(refine_matches(s.left, s.right, m, on), 1u);
+  ASSERT_EQ(m.size(), 3u);
+  const double want[3] = {TwoLayers::kFront, TwoLayers::kBack, TwoLayers::kBack};
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NE(m[std::size_t(i)].xl, bad_x);
+    EXPECT_NEAR(m[std::size_t(i)].disparity(), want[i], 0.1);
+  }
+
+  on.layer_search = 0;
+  EXPECT_THROW(refine_matches(s.left, s.right, m, on), std::runtime_error);
+}
+
 TEST(Middlebury, PfmAndCalibRoundTrip)
 {
   const std::string dir = ::testing::TempDir();

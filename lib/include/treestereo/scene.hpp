@@ -122,7 +122,7 @@ public:
   void render(int view, std::uint64_t frame, cv::Mat &rgb, GroundTruth *truth = nullptr) const;
 
   // The undistorted normalised coordinates (X/Z, Y/Z) of every pixel's ray in that view's
-  // camera frame (CV_64FC2, image_size): a pixel's 3D hit is Z * (x, y, 1) with Z from depth.
+  // camera frame (CV_32FC2, image_size): a pixel's 3D hit is Z * (x, y, 1) with Z from depth.
   const cv::Mat &normalized_rays(int view) const;
 
   // How far the rig has driven at `frame` (mm along +x).
