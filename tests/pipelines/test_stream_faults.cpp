@@ -15,7 +15,6 @@
 #include "treestereo/scene.hpp"
 
 #include <cmath>
-#include <cstdlib>
 #include <map>
 #include <string>
 #include <vector>
