@@ -23,7 +23,7 @@
  *     thread-local bookkeeping (now lib's Worker).
  * Prints VmRSS, glibc's heap in use and the heap it holds (in use + free in its arenas) every
  * 10 % of the run. */
-#include "message_checks.hpp"
+#include "../common/finite_fields.hpp"
 #include "treestereo/calibration.hpp"
 #include "treestereo/scene.hpp"
 #include "treestereo/stats.hpp"

@@ -6,7 +6,6 @@
  * tree-present=false and carry no figure; the good frames measure their own tree (not the
  * previous one), and the smoother forgot the first tree. A zero-size buffer ends in an error
  * message, not a crash or a hang. */
-#include "message_checks.hpp"
 #include "treestereo/calibration.hpp"
 #include "treestereo/scene.hpp"
 
@@ -23,6 +22,8 @@
 #include <gst/video/video.h>
 #include <gst/treestereo/treestereo-meta.h>
 #include <gst/check/gstcheck.h>
+
+#include "../common/finite_fields.hpp"
 
 using namespace treestereo;
 
@@ -100,13 +101,6 @@ static void push(Chain &c, int i, const cv::Mat &rgb, int n)
   GST_BUFFER_PTS(buf) = n * FRAME;
   GST_BUFFER_DURATION(buf) = FRAME;
   fail_unless_equals_int(gst_app_src_push_buffer(c.src[i], buf), GST_FLOW_OK);
-}
-
-/* Fails when any number in @s, through nested structures and arrays, is NaN or inf. */
-static void expect_structure_finite(const GstStructure *s)
-{
-  std::string where;
-  fail_unless(structure_all_finite(s, &where), "%s is not finite", where.c_str());
 }
 
 /* Runs to EOS; returns every element message of the chain. An error fails the test. */

@@ -1,5 +1,6 @@
-/* Checks on element messages shared by the pipeline tests (no gstcheck: the soak is a plain
- * program). */
+/* Every number in an element message must be finite: the walk shared by the tests that read
+ * element messages. structure_all_finite() needs GStreamer only (the soak is a plain program);
+ * expect_structure_finite() is for gstcheck tests (include this after <gst/check/gstcheck.h>). */
 #pragma once
 
 #include <gst/gst.h>
@@ -48,3 +49,12 @@ inline bool structure_all_finite(const GstStructure *s, std::string *where)
   }
   return true;
 }
+
+#ifdef fail_unless
+/* Fails the gstcheck test when any field of @s is NaN or inf, naming the structure and field. */
+static inline void expect_structure_finite(const GstStructure *s)
+{
+  std::string where;
+  fail_unless(structure_all_finite(s, &where), "%s is not finite", where.c_str());
+}
+#endif
