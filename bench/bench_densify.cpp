@@ -76,6 +76,8 @@ int main(int argc, char **argv)
 {
   std::string sizes = "1296x972", distances = "1.8,2.0,2.2", seeds = "1,2,3", lights = "1.0";
   DensifyParams dp;
+  MetricsParams mpar;
+  SegmentParams segp;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--sizes")
@@ -96,6 +98,12 @@ int main(int argc, char **argv)
       dp.min_zncc = std::stod(v);
     else if (a == "--margin")
       dp.min_margin = std::stod(v);
+    else if (a == "--tangent-fraction")
+      mpar.tangent_fraction = std::stod(v);
+    else if (a == "--tangent-min")
+      mpar.tangent_min_points = std::stoi(v);
+    else if (a == "--morph")
+      segp.morph_size = std::stoi(v);
     else if (a == "--lr")
       dp.left_right_check = std::stoi(v) != 0;
     else {
@@ -131,8 +139,8 @@ int main(int argc, char **argv)
             cv::cvtColor(rgb[v], rgb[v], cv::COLOR_RGB2BGR);
             rectify_view(rect, v, rgb[v], rv[v]);
           }
-          const Silhouette segl = segment_vegetation(rv[LEFT]);
-          const Silhouette segr = segment_vegetation(rv[RIGHT]);
+          const Silhouette segl = segment_vegetation(rv[LEFT], segp);
+          const Silhouette segr = segment_vegetation(rv[RIGHT], segp);
           MatchParams mp;
           const DisparityRange dr = disparity_range_for_depth(g, 500, 10000);
           mp.matcher.constraints.min_disparity = dr.min;
@@ -211,7 +219,7 @@ int main(int argc, char **argv)
           const std::vector<Point3> *pts[5] = {&sift.points, &dense.points, &all.points,
                                                &all.points, &tpts};
           for (int k = 0; k < 5; ++k) {
-            const TreeMetrics m = compute_tree_metrics(k < 3 ? segl : tsil, *pts[k], g, MetricsParams());
+            const TreeMetrics m = compute_tree_metrics(k < 3 ? segl : tsil, *pts[k], g, mpar);
             Errs &e = errs[k];
             dist_err[k] = 100 * (m.distance_m - tr.distance_m);
             e.d_cm.push_back(dist_err[k]);
