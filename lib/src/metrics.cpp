@@ -68,14 +68,17 @@ std::vector<CanopyPoint> canopy_points(const std::vector<Point3> &points, const 
   return out;
 }
 
-// The silhouette area (pixels) nearest to each point: its Voronoi cell within the mask.
-std::vector<double> area_weights(const std::vector<CanopyPoint> &pts, const cv::Mat &mask)
+// The silhouette area (pixels) nearest to each point: its Voronoi cell within the mask. Only the
+// mask's bounding box is labelled (the points project into it, within a pixel, and clamp to it).
+std::vector<double> area_weights(const std::vector<CanopyPoint> &pts, const cv::Mat &full_mask)
 {
+  const cv::Rect box = cv::boundingRect(full_mask);
+  const cv::Mat mask = full_mask(box);
   cv::Mat seeds(mask.size(), CV_8U, cv::Scalar(255));
   std::vector<cv::Point> at(pts.size());
   for (std::size_t i = 0; i < pts.size(); i++) {
-    at[i] = cv::Point(std::clamp(int(std::lround(pts[i].u)), 0, mask.cols - 1),
-                      std::clamp(int(std::lround(pts[i].v)), 0, mask.rows - 1));
+    at[i] = cv::Point(std::clamp(int(std::lround(pts[i].u)) - box.x, 0, mask.cols - 1),
+                      std::clamp(int(std::lround(pts[i].v)) - box.y, 0, mask.rows - 1));
     seeds.at<uchar>(at[i]) = 0;
   }
   cv::Mat dist, labels;
