@@ -4,13 +4,20 @@
 // siftmatch's defaults with the automatic scale, stereodepth's filter), per scene:
 //   - the grid points' depth error against the renderer's truth at the same rectified pixel;
 //   - distance, thickness, height and width of compute_tree_metrics from (a) the SIFT points
-//     alone (the chain before densification), (b) the grid points alone, (c) both;
+//     alone (the chain before densification), (b) the grid points alone, (c) both (what the
+//     chain now does); and, to see where the remaining errors come from (these use the truth,
+//     as a diagnosis, never in the chain): (d) both with the true silhouette (the renderer's
+//     canopy mask rectified), (e) the true visible surface with the true silhouette, (f) the grid
+//     points within 2 cm of the truth at their pixel, (g) the truth at the kept grid pixels;
+//   - the truth's median over the segmented mask, over the grid and over the kept grid pixels
+//     (what an even sample of each would give);
 //   - the time densify_matches takes.
 // Prints markdown tables.
 //
 //   bench-densify [--sizes 1296x972] [--distances 1.8,2.0,2.2] [--seeds 1,2,3] [--lights 1.0]
 //                 [--step 0] [--target 4000] [--half-window 3] [--min-zncc 0.8]
-//                 [--margin 0.05] [--lr 1]
+//                 [--margin 0.05] [--lr 1] [--tangent-fraction 0.1] [--tangent-min 15]
+//                 [--morph 5] [--area-weighted 1] [--outlier-k 3.5]
 #include "sweep.hpp"
 #include "treestereo/densify.hpp"
 #include "treestereo/depth.hpp"
@@ -78,6 +85,7 @@ int main(int argc, char **argv)
   DensifyParams dp;
   MetricsParams mpar;
   SegmentParams segp;
+  DepthParams depth_params;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--sizes")
@@ -102,6 +110,10 @@ int main(int argc, char **argv)
       mpar.tangent_fraction = std::stod(v);
     else if (a == "--tangent-min")
       mpar.tangent_min_points = std::stoi(v);
+    else if (a == "--area-weighted")
+      mpar.area_weighted = std::stoi(v) != 0;
+    else if (a == "--outlier-k")
+      depth_params.outlier_k = std::stod(v);
     else if (a == "--morph")
       segp.morph_size = std::stoi(v);
     else if (a == "--lr")
@@ -112,7 +124,9 @@ int main(int argc, char **argv)
     }
   }
   const char *variants[] = {"SIFT points", "grid points", "SIFT + grid",
-                            "SIFT + grid, true mask", "true points, true mask"};
+                            "SIFT + grid, true mask", "true points, true mask",
+                            "grid points within 2 cm of truth (oracle), true mask",
+                            "truth at the kept grid pixels, true mask"};
   std::map<int, Errs> errs;
   std::vector<double> point_err_med, point_err_bad, densify_ms, kept_frac;
   std::printf("| size | d (m) | seed | light | SIFT pts | grid | kept | flat | weak | ambiguous | "
@@ -160,9 +174,9 @@ int main(int argc, char **argv)
 
           std::vector<StereoMatch> both = mr.matches;
           both.insert(both.end(), grid.begin(), grid.end());
-          const DepthResult sift = triangulate_matches(mr.matches, g, DepthParams());
-          const DepthResult dense = triangulate_matches(grid, g, DepthParams());
-          const DepthResult all = triangulate_matches(both, g, DepthParams());
+          const DepthResult sift = triangulate_matches(mr.matches, g, depth_params);
+          const DepthResult dense = triangulate_matches(grid, g, depth_params);
+          const DepthResult all = triangulate_matches(both, g, depth_params);
 
           const cv::Mat zt = truth_depth_rectified(r, t, g);
           std::vector<double> pe, pe_abs;
@@ -215,10 +229,30 @@ int main(int argc, char **argv)
             q.z = tr.canopy_points_mm[i].z;
             tpts.push_back(q);
           }
-          double dist_err[5] = {0, 0, 0, 0, 0};
-          const std::vector<Point3> *pts[5] = {&sift.points, &dense.points, &all.points,
-                                               &all.points, &tpts};
-          for (int k = 0; k < 5; ++k) {
+          // Diagnosis only (uses the truth): the grid points whose depth is within 2 cm of the
+          // truth at their pixel, to see what the wrong ones cost.
+          std::vector<Point3> good;
+          for (const Point3 &q : dense.points) {
+            const StereoMatch &m = grid[q.match_index];
+            const float z = zt.at<float>(int(m.yl), int(m.xl));
+            if (q.valid && z > 0 && std::abs(q.z - z) <= 20.0)
+              good.push_back(q);
+          }
+          std::vector<Point3> at_grid;
+          for (const StereoMatch &m : grid) {
+            const float z = zt.at<float>(int(m.yl), int(m.xl));
+            if (z <= 0)
+              continue;
+            Point3 q;
+            q.z = z;
+            q.x = float((m.xl - g.cx[LEFT]) * z / g.fx);
+            q.y = float((m.yl - g.cy) * z / g.fy);
+            at_grid.push_back(q);
+          }
+          double dist_err[7] = {0, 0, 0, 0, 0, 0, 0};
+          const std::vector<Point3> *pts[7] = {&sift.points, &dense.points, &all.points,
+                                               &all.points, &tpts, &good, &at_grid};
+          for (int k = 0; k < 7; ++k) {
             const TreeMetrics m = compute_tree_metrics(k < 3 ? segl : tsil, *pts[k], g, mpar);
             Errs &e = errs[k];
             dist_err[k] = 100 * (m.distance_m - tr.distance_m);
