@@ -58,10 +58,17 @@ struct GridPoint {
   StereoMatch match;
 };
 
+// Per-thread scratch buffers, reused from one grid point to the next.
+struct Scratch {
+  std::vector<float> lc, rc;        // centred left and right patches
+  std::vector<double> scores, back; // ZNCC along the row, and back from the right view
+};
+
 GridPoint match_grid_point(const cv::Mat &L, const cv::Mat &R, int x, int y, int lo, int hi,
-                           const DensifyParams &p, std::vector<float> &lc,
-                           std::vector<float> &rc, std::vector<double> &scores)
+                           const DensifyParams &p, Scratch &sc)
 {
+  std::vector<float> &lc = sc.lc, &rc = sc.rc;
+  std::vector<double> &scores = sc.scores;
   const int h = p.half_window;
   double lnorm = 0;
   if (!detail::centred_patch(L, x, y, h, lc, lnorm))
@@ -81,11 +88,10 @@ GridPoint match_grid_point(const cv::Mat &L, const cv::Mat &R, int x, int y, int
   const double cm = scores[std::size_t(best - lo)], cp = scores[std::size_t(best - lo + 2)];
   if (p.left_right_check) {
     double rnorm = 0;
-    std::vector<double> back;
     const int xr = x - best;
     if (!detail::centred_patch(R, xr, y, h, rc, rnorm))
       return {Outcome::kInconsistent, {}};
-    const int b = best_disparity(rc, rnorm, L, xr, y, h, lo, hi, -1, back);
+    const int b = best_disparity(rc, rnorm, L, xr, y, h, lo, hi, -1, sc.back);
     if (b < lo || std::abs(b - best) > 1)
       return {Outcome::kInconsistent, {}};
   }
@@ -122,6 +128,11 @@ std::vector<StereoMatch> densify_matches(const cv::Mat &left, const cv::Mat &rig
   const int lo = int(std::floor(d_lo - p.search_margin_px));
   const int hi = int(std::ceil(d_hi + p.search_margin_px));
   const int area = cv::countNonZero(mask_left);
+  if (area == 0) {
+    if (stats_out)
+      *stats_out = st;
+    return out; // no canopy: nothing to sample
+  }
   st.step = p.step > 0 ? p.step
                        : std::max(1, int(std::lround(std::sqrt(double(area) / p.target_points))));
   st.min_disparity = lo;
@@ -159,8 +170,7 @@ std::vector<StereoMatch> densify_matches(const cv::Mat &left, const cv::Mat &rig
   std::vector<std::vector<StereoMatch>> rows(static_cast<std::size_t>(n_rows));
   std::vector<DensifyStats> row_stats(rows.size());
   cv::parallel_for_(cv::Range(0, n_rows), [&](const cv::Range &r) {
-    std::vector<float> lc, rc;
-    std::vector<double> scores;
+    Scratch scratch;
     for (int i = r.start; i < r.end; ++i) {
       const int y = y0 + i * s;
       const uchar *m = M.ptr<uchar>(y);
@@ -169,7 +179,7 @@ std::vector<StereoMatch> densify_matches(const cv::Mat &left, const cv::Mat &rig
         if (!m[x])
           continue;
         ++rs.grid;
-        GridPoint g = match_grid_point(L, R, x, y, wlo, whi, p, lc, rc, scores);
+        GridPoint g = match_grid_point(L, R, x, y, wlo, whi, p, scratch);
         switch (g.outcome) {
         case Outcome::kKept:
           ++rs.kept;

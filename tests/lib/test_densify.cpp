@@ -251,6 +251,10 @@ TEST(Densify, TooFewSeedsOrBadInput)
   EXPECT_EQ(st.grid, 0u);
   EXPECT_EQ(st.kept, 0u);
   const std::vector<StereoMatch> seeds = seeds_at({s.df}, 20);
+  // An empty mask: no canopy, nothing to sample.
+  EXPECT_TRUE(densify_matches(s.left, s.right, cv::Mat::zeros(s.mask.size(), CV_8U), seeds, p, &st)
+                  .empty());
+  EXPECT_EQ(st.grid, 0u);
   EXPECT_THROW(densify_matches(s.left, s.right(cv::Rect(0, 0, 100, 100)), s.mask, seeds, p),
                std::runtime_error);
   EXPECT_THROW(densify_matches(s.left, s.right, s.mask(cv::Rect(0, 0, 100, 100)), seeds, p),
