@@ -211,10 +211,12 @@ Chain chain_of(const std::string &kind, const Frames &f, const std::string &sift
                           "stereorectify name=r calibration=" + f.calib_path;
   const std::string sink = " ! fakesink name=sink sync=false";
   Chain c;
-  if (kind == "full") {
+  if (kind == "full" || kind == "sparse") {
+    // sparse: stereodepth without densification (the matches' points alone)
     c.description = src + " ! exgsegment name=exgsegment ! siftmatch name=siftmatch " +
-                    sift_extra + " ! stereodepth name=stereodepth ! treemetrics name=treemetrics" +
-                    sink;
+                    sift_extra + " ! stereodepth name=stereodepth" +
+                    (kind == "sparse" ? " densify=false" : "") +
+                    " ! treemetrics name=treemetrics" + sink;
     c.timed = {"exgsegment", "siftmatch", "stereodepth", "treemetrics"};
   } else if (kind == "queued") {
     // Two stages: rectify+segment on the aggregator's thread, match+depth+metrics on the

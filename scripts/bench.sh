@@ -55,7 +55,8 @@ load_after=$(cut -d' ' -f1-3 /proc/loadavg)
        "that memory (no decoding, no pixel copy) into stereorectify, or, for \`disparity\`," \
        "pre-rectified copies straight into it; the sink is fakesink sync=false."
   echo "Pipelines: **full** = stereorectify ! exgsegment ! siftmatch ! stereodepth ! treemetrics" \
-       "(one streaming thread); **queued** = the same with a queue after exgsegment (two stages" \
+       "(one streaming thread; stereodepth densifies, its default); **sparse** = the same with" \
+       "stereodepth densify=false; **queued** = full with a queue after exgsegment (two stages" \
        "overlapping); **dense** = stereorectify ! exgsegment ! stereodepth mode=dense !" \
        "treemetrics; **disparity** = gst-plugins-bad's \`disparity method=sgbm\` (OpenCV SGBM," \
        "64 disparities, block 3, MODE_HH) on the rectified pairs."

@@ -1,5 +1,7 @@
 #include "common.hpp"
 
+#include "treestereo/features.hpp"
+
 #include <cstring>
 
 GST_DEBUG_CATEGORY_STATIC(treestereo_common_debug);
@@ -79,13 +81,7 @@ cv::Mat gray_view(const cv::Mat &view, const PixelLayout &l)
     return view;
   if (l.channels != view.channels())
     throw std::runtime_error("gray_view: the pixel layout does not match the frame");
-  cv::Matx<float, 1, 4> w = cv::Matx<float, 1, 4>::zeros();
-  w(0, l.r) = 0.299f;
-  w(0, l.g) = 0.587f;
-  w(0, l.b) = 0.114f;
-  cv::Mat out;
-  cv::transform(view, out, cv::Mat(w).colRange(0, l.channels));
-  return out;
+  return to_gray8(view, l.order());
 }
 
 int n_views_of(const GstVideoInfo *info)

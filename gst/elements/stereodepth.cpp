@@ -10,9 +10,19 @@
  * #stereodepth:outlier-k · 1.4826 · MAD). Dropped points stay in the meta with valid=FALSE and
  * every drop is counted.
  *
- * - `mode=sparse` (default) triangulates the matches of siftmatch's #GstTreeStereoMatchesMeta;
- *   the pixels are not touched (not even mapped). Missing matches meta: an error naming
- *   siftmatch.
+ * - `mode=sparse` (default) triangulates the matches of siftmatch's #GstTreeStereoMatchesMeta.
+ *   Missing matches meta: an error naming siftmatch. With #stereodepth:densify (default TRUE)
+ *   the matches also seed a grid of the canopy: every #stereodepth:densify-step th pixel of the
+ *   left vegetation mask is matched along its row by ZNCC within the disparities the matches
+ *   span, and kept only on a clear, left-right consistent correlation peak (lib's
+ *   densify_matches()). The grid points follow the matches' points in the points meta
+ *   (#GstTreeStereoDepthStats.n_grid of them, match_index = the left-view pixel index
+ *   y·width + x): an even sample of the visible canopy, which the canopy's distance and
+ *   thickness (treemetrics) are statistics of, where SIFT's keypoints crowd on the front
+ *   leaves. Densification maps the frame read-only; it needs side-by-side frames and exgsegment's
+ *   #GstTreeStereoVegetationMeta, and without them (or with fewer than 10 matches, or no canopy)
+ *   the points are the matches' alone (a warning, once, says which is missing). With
+ *   densify=FALSE the pixels are not touched (not even mapped).
  * - `mode=dense` runs OpenCV's StereoSGBM (3-way) on the canopy's bounding box of the left view
  *   (and the columns of the right view a match can come from), keeps the pixels of the
  *   vegetation mask, and attaches the depth map (GRAY16_LE, mm, 0 = unknown) to the points meta;
@@ -31,6 +41,7 @@
  *
  * - `mode`: #gchararray, "sparse" or "dense"
  * - `points`: #guint, points computed (valid or not)
+ * - `grid-points`: #guint, of those, the grid points of #stereodepth:densify
  * - `valid`: #guint, points kept
  * - `dropped-disparity`: #guint, points without a finite depth (disparity - doffs <= 0)
  * - `dropped-range`: #guint, dropped as outside [min-depth, max-depth]
@@ -62,6 +73,7 @@
 #include "common.hpp"
 #include "elements.hpp"
 
+#include "treestereo/densify.hpp"
 #include "treestereo/depth.hpp"
 
 #include <gst/base/gstbasetransform.h>
@@ -96,6 +108,7 @@ static GType gst_stereo_depth_mode_get_type(void)
 }
 
 #define DEFAULT_MODE GST_STEREO_DEPTH_MODE_SPARSE
+#define DEFAULT_DENSIFY TRUE
 #define DEFAULT_POST_MESSAGES TRUE
 
 enum {
@@ -114,6 +127,8 @@ enum {
   PROP_SPECKLE_RANGE,
   PROP_SAMPLE_STEP,
   PROP_POST_MESSAGES,
+  PROP_DENSIFY,
+  PROP_DENSIFY_STEP,
 };
 
 namespace {
@@ -121,6 +136,8 @@ namespace {
 struct Settings {
   GstStereoDepthMode mode = DEFAULT_MODE;
   DenseParams dense; // dense.filter is the depth cleaning of both modes
+  bool densify = DEFAULT_DENSIFY;
+  DensifyParams grid;
   bool post_messages = DEFAULT_POST_MESSAGES;
 };
 
@@ -130,6 +147,7 @@ struct State {
   // streaming thread only
   GstVideoInfo info;
   bool info_set = false;
+  bool warned_no_densify = false; // the reason densification is skipped was said once
 };
 
 /* What one buffer gives: the points, their figures and (dense) the depth map. */
@@ -192,17 +210,69 @@ static std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &
   return out;
 }
 
-static void sparse_depth(const GstTreeStereoMatchesMeta *mm, const StereoGeometry &g,
-                         const Settings &s, Output &out)
+/* Says once why densify=TRUE does nothing on this stream. */
+static void warn_no_densify(GstStereoDepth *self, const char *why)
+{
+  if (self->state->warned_no_densify)
+    return;
+  self->state->warned_no_densify = true;
+  GST_ELEMENT_WARNING(self, STREAM, FAILED, ("densify: %s; the points are the matches' alone.", why),
+                      (nullptr));
+}
+
+/* The grid matches of densify (empty when it cannot run on this buffer). */
+static std::vector<StereoMatch> grid_matches(GstStereoDepth *self, GstBuffer *buf,
+                                             const std::vector<StereoMatch> &seeds,
+                                             const Settings &s)
+{
+  State *st = self->state;
+  if (!st->info_set || treestereo::gst::n_views_of(&st->info) != 2) {
+    warn_no_densify(self, "the frames are not side-by-side stereo pairs");
+    return {};
+  }
+  const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
+  if (!veg || veg->n_views < 1) {
+    warn_no_densify(self, "no vegetation meta on the buffer (put exgsegment upstream)");
+    return {};
+  }
+  const GstTreeStereoVegetationView *lv = &veg->views[LEFT];
+  if (!lv->present || int(seeds.size()) < s.grid.min_seeds)
+    return {}; // no canopy, or too few matches to bound the search: nothing to densify
+  treestereo::gst::MappedSilhouette sil(lv);
+  if (sil.get().mask.empty()) {
+    warn_no_densify(self, "the vegetation meta carries no mask");
+    return {};
+  }
+  treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
+  if (!frame.ok())
+    throw std::runtime_error("could not map the frame for densification");
+  const cv::Mat mat = frame.mat();
+  DensifyParams p = s.grid;
+  p.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
+  return densify_matches(treestereo::gst::view_mat(mat, LEFT, 2),
+                         treestereo::gst::view_mat(mat, RIGHT, 2), sil.get().mask, seeds, p);
+}
+
+static void sparse_depth(GstStereoDepth *self, GstBuffer *buf, const GstTreeStereoMatchesMeta *mm,
+                         const StereoGeometry &g, const Settings &s, Output &out)
 {
   std::vector<StereoMatch> matches(mm->n_matches);
   for (guint i = 0; i < mm->n_matches; i++) {
     const GstTreeStereoMatch &m = mm->matches[i];
     matches[i] = {m.xl, m.yl, m.xr, m.yr, m.score};
   }
-  const DepthResult r = triangulate_matches(matches, g, s.dense.filter);
+  const std::vector<StereoMatch> grid =
+      s.densify ? grid_matches(self, buf, matches, s) : std::vector<StereoMatch>();
+  matches.insert(matches.end(), grid.begin(), grid.end());
+  DepthResult r = triangulate_matches(matches, g, s.dense.filter);
+  for (std::size_t i = mm->n_matches; i < r.points.size(); i++) {
+    const StereoMatch &m = matches[i];
+    r.points[i].match_index = std::uint32_t(std::lround(m.yl)) * std::uint32_t(g.view_size.width) +
+                              std::uint32_t(std::lround(m.xl));
+  }
   out.points = to_gst_points(r.points);
   fill_stats(r.stats, &out.stats);
+  out.stats.n_grid = guint(grid.size());
 }
 
 /* The depth map as a GRAY16_LE buffer, rows of width * 2 bytes. */
@@ -318,7 +388,7 @@ static GstFlowReturn gst_stereo_depth_transform_ip(GstBaseTransform *trans, GstB
   const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
     const StereoGeometry g = treestereo::gst::geometry_from_meta(gm);
     if (s.mode == GST_STEREO_DEPTH_MODE_SPARSE)
-      sparse_depth(mm, g, s, out);
+      sparse_depth(self, buf, mm, g, s, out);
     else
       dense(self, buf, g, s, out);
     return true;
@@ -352,6 +422,8 @@ static void gst_stereo_depth_set_property(GObject *object, guint prop_id, const 
   case PROP_SPECKLE_RANGE: s.dense.speckle_range = g_value_get_int(value); break;
   case PROP_SAMPLE_STEP: s.dense.sample_step = g_value_get_int(value); break;
   case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
+  case PROP_DENSIFY: s.densify = g_value_get_boolean(value); break;
+  case PROP_DENSIFY_STEP: s.grid.step = g_value_get_int(value); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
 }
@@ -377,6 +449,8 @@ static void gst_stereo_depth_get_property(GObject *object, guint prop_id, GValue
   case PROP_SPECKLE_RANGE: g_value_set_int(value, s.dense.speckle_range); break;
   case PROP_SAMPLE_STEP: g_value_set_int(value, s.dense.sample_step); break;
   case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
+  case PROP_DENSIFY: g_value_set_boolean(value, s.densify); break;
+  case PROP_DENSIFY_STEP: g_value_set_int(value, s.grid.step); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
 }
@@ -463,6 +537,17 @@ static void gst_stereo_depth_class_init(GstStereoDepthClass *klass)
   install_int(gobject_class, PROP_SAMPLE_STEP, "sample-step", "Sample step",
               "dense: a 3D point from every n-th canopy pixel in x and in y", 1, 1024,
               d.sample_step);
+  g_object_class_install_property(
+      gobject_class, PROP_DENSIFY,
+      g_param_spec_boolean("densify", "Densify",
+                           "sparse: also match a grid of the canopy's pixels by ZNCC, seeded by "
+                           "the matches (an even sample of the canopy for its distance and "
+                           "thickness); needs side-by-side frames and a vegetation meta",
+                           DEFAULT_DENSIFY, RW_PLAYING));
+  install_int(gobject_class, PROP_DENSIFY_STEP, "densify-step", "Densify step",
+              "sparse with densify: grid step in px; 0 = automatic, about 4000 grid points on "
+              "the canopy",
+              0, 1024, DensifyParams{}.step);
   g_object_class_install_property(
       gobject_class, PROP_POST_MESSAGES,
       g_param_spec_boolean("post-messages", "Post messages",

@@ -43,7 +43,8 @@
  *   (height or width is then a lower bound); also as #gboolean `clipped-top`,
  *   `clipped-bottom`, `clipped-left`, `clipped-right`
  * - `points`: #guint, canopy points the figures rest on
- * - `matches`: #guint, points (correspondences) stereodepth delivered
+ * - `matches`: #guint, points (correspondences) stereodepth delivered: SIFT matches and, with
+ *   stereodepth's densify, its grid points
  * - `bands`: #GstValueArray of #GstStructure `band`, #treemetrics:bands of them from the canopy's
  *   top to its bottom, each with `present` (#gboolean), `top`, `bottom` (#gdouble, m, Y),
  *   `left`, `right` (#gdouble, m, X of the canopy's edges in the band), `width` (#gdouble, m)

@@ -271,7 +271,9 @@ static OverlayScene scene_from_metas(GstBuffer *buf, int n_views)
     }
     if (const GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(buf)) {
       scene.match_depth_m.assign(scene.matches.size(), 0.0);
-      for (guint i = 0; pm->points && i < pm->n_points; i++) {
+      /* the trailing grid points of stereodepth's densification are no matches */
+      const guint n_match_points = pm->n_points - MIN(pm->stats.n_grid, pm->n_points);
+      for (guint i = 0; pm->points && !pm->dense && i < n_match_points; i++) {
         const GstTreeStereoPoint &p = pm->points[i];
         if (p.valid && p.match_index < scene.match_depth_m.size() && std::isfinite(p.z))
           scene.match_depth_m[p.match_index] = p.z / 1000.0;

@@ -873,7 +873,8 @@ gst_tree_stereo_depth_message_structure (gboolean dense, const GstTreeStereoDept
       "p05-depth", G_TYPE_DOUBLE, st->p05_z_mm,
       "p95-depth", G_TYPE_DOUBLE, st->p95_z_mm,
       "accept-min-depth", G_TYPE_DOUBLE, st->accept_lo_mm,
-      "accept-max-depth", G_TYPE_DOUBLE, st->accept_hi_mm, NULL);
+      "accept-max-depth", G_TYPE_DOUBLE, st->accept_hi_mm,
+      "grid-points", G_TYPE_UINT, st->n_grid, NULL);
   set_times (s, times);
   return s;
 }
@@ -903,7 +904,8 @@ gst_tree_stereo_depth_message_parse (const GstStructure * s, gboolean * dense,
       "p05-depth", G_TYPE_DOUBLE, &st->p05_z_mm,
       "p95-depth", G_TYPE_DOUBLE, &st->p95_z_mm,
       "accept-min-depth", G_TYPE_DOUBLE, &st->accept_lo_mm,
-      "accept-max-depth", G_TYPE_DOUBLE, &st->accept_hi_mm, NULL) && get_times (s, times);
+      "accept-max-depth", G_TYPE_DOUBLE, &st->accept_hi_mm,
+      "grid-points", G_TYPE_UINT, &st->n_grid, NULL) && get_times (s, times);
 }
 
 /* Field names of the metrics, raw ("distance") or smoothed ("smoothed-distance"). */

@@ -34,6 +34,25 @@ cv::Mat to_gray8(const cv::Mat &view)
   }
 }
 
+cv::Mat to_gray8(const cv::Mat &view, const ChannelOrder &order)
+{
+  if (view.channels() == 1)
+    return to_gray8(view);
+  if (view.depth() != CV_8U || view.channels() != order.channels || order.r < 0 || order.g < 0 ||
+      order.b < 0 || order.r >= order.channels || order.g >= order.channels ||
+      order.b >= order.channels)
+    throw std::runtime_error("grey conversion: the view (" + std::to_string(view.channels()) +
+                             " channels) does not match the pixel layout (" +
+                             std::to_string(order.channels) + " channels)");
+  cv::Matx<float, 1, 4> w = cv::Matx<float, 1, 4>::zeros();
+  w(0, order.r) = 0.299f;
+  w(0, order.g) = 0.587f;
+  w(0, order.b) = 0.114f;
+  cv::Mat out;
+  cv::transform(view, out, cv::Mat(w).colRange(0, order.channels));
+  return out;
+}
+
 cv::Rect detection_region(const cv::Size &view_size, const cv::Mat &mask, int margin)
 {
   const cv::Rect whole(cv::Point(0, 0), view_size);

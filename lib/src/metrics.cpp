@@ -68,14 +68,17 @@ std::vector<CanopyPoint> canopy_points(const std::vector<Point3> &points, const 
   return out;
 }
 
-// The silhouette area (pixels) nearest to each point: its Voronoi cell within the mask.
-std::vector<double> area_weights(const std::vector<CanopyPoint> &pts, const cv::Mat &mask)
+// The silhouette area (pixels) nearest to each point: its Voronoi cell within the mask. Only the
+// mask's bounding box is labelled (the points project into it, within a pixel, and clamp to it).
+std::vector<double> area_weights(const std::vector<CanopyPoint> &pts, const cv::Mat &full_mask)
 {
+  const cv::Rect box = cv::boundingRect(full_mask);
+  const cv::Mat mask = full_mask(box);
   cv::Mat seeds(mask.size(), CV_8U, cv::Scalar(255));
   std::vector<cv::Point> at(pts.size());
   for (std::size_t i = 0; i < pts.size(); i++) {
-    at[i] = cv::Point(std::clamp(int(std::lround(pts[i].u)), 0, mask.cols - 1),
-                      std::clamp(int(std::lround(pts[i].v)), 0, mask.rows - 1));
+    at[i] = cv::Point(std::clamp(int(std::lround(pts[i].u)) - box.x, 0, mask.cols - 1),
+                      std::clamp(int(std::lround(pts[i].v)) - box.y, 0, mask.rows - 1));
     seeds.at<uchar>(at[i]) = 0;
   }
   cv::Mat dist, labels;
@@ -228,9 +231,12 @@ bool robust_line_fit(const std::vector<double> &x, const std::vector<double> &z,
 // radius r seen at distance d inside its limb is sqrt(2 r d) in front of it), so the depth is
 // fitted as z = a0 + a1 * sqrt(distance) and the limb's depth is a0. A fit that does not recede
 // (a1 > 0) or fails falls back to the median of those points; no points at all to `fallback`.
+// `clipped`: the edge is the image border, not a limb (the canopy goes on beyond it), so there is
+// nothing to extrapolate to: the median of those points converts the border's ray, a depth at
+// which that ray is inside the canopy, so the extent stays a lower bound.
 double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, bool vertical,
                   double t_edge, double t_other, double fraction, std::size_t min_points,
-                  double fallback)
+                  double fallback, bool clipped)
 {
   const double fy = g.fy > 0 ? g.fy : g.fx;
   std::vector<double> dist(pts.size()); // from the edge, in units of the extent
@@ -248,7 +254,7 @@ double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, 
     if (z.size() < min_points)
       continue;
     double a0 = 0, a1 = 0;
-    if (!robust_line_fit(r, z, a0, a1) || !(a1 <= 0))
+    if (clipped || !robust_line_fit(r, z, a0, a1) || !(a1 <= 0))
       return median(z);
     return a0;
   }
@@ -257,7 +263,7 @@ double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, 
 
 Converter tangent_points(const std::vector<CanopyPoint> &pts, const Slopes &s,
                          const StereoGeometry &g, double fraction, std::size_t min_points,
-                         double fallback)
+                         double fallback, const Clipped &clip)
 {
   Converter c;
   c.sided = true;
@@ -265,10 +271,11 @@ Converter tangent_points(const std::vector<CanopyPoint> &pts, const Slopes &s,
   c.t1x = s.right;
   c.t0y = s.top;
   c.t1y = s.bottom;
-  c.z0x = side_depth(pts, g, false, s.left, s.right, fraction, min_points, fallback);
-  c.z1x = side_depth(pts, g, false, s.right, s.left, fraction, min_points, fallback);
-  c.z0y = side_depth(pts, g, true, s.top, s.bottom, fraction, min_points, fallback);
-  c.z1y = side_depth(pts, g, true, s.bottom, s.top, fraction, min_points, fallback);
+  c.z0x = side_depth(pts, g, false, s.left, s.right, fraction, min_points, fallback, clip.left);
+  c.z1x = side_depth(pts, g, false, s.right, s.left, fraction, min_points, fallback, clip.right);
+  c.z0y = side_depth(pts, g, true, s.top, s.bottom, fraction, min_points, fallback, clip.top);
+  c.z1y = side_depth(pts, g, true, s.bottom, s.top, fraction, min_points, fallback,
+                     clip.bottom);
   const double dt = s.right - s.left;
   c.z_ext = dt > 0 ? (c.x(s.right) - c.x(s.left)) / dt : fallback;
   c.zc = c.z_ext;
@@ -293,13 +300,15 @@ double edge_depth(const std::vector<CanopyPoint> &pts, const RowExtents &e, doub
 
 Converter choose_converter(const MetricsParams &p, const Slopes &s, const Summary &depth,
                            std::vector<double> z, const std::vector<CanopyPoint> &pts,
-                           const RowExtents &e, const StereoGeometry &g)
+                           const RowExtents &e, const StereoGeometry &g, const Clipped &clip)
 {
   Converter c;
   const double mid = depth.median + 0.5 * (depth.p95 - depth.p05);
   switch (p.extent_depth) {
   case ExtentDepth::kRoundCanopy: return round_canopy(s, percentile(z, p.near_percentile));
-  case ExtentDepth::kTangentPoints: return tangent_points(pts, s, g, p.tangent_fraction, std::size_t(p.tangent_min_points), mid);
+  case ExtentDepth::kTangentPoints:
+    return tangent_points(pts, s, g, p.tangent_fraction, std::size_t(p.tangent_min_points), mid,
+                          clip);
   case ExtentDepth::kEdgePoints: c.z_ext = edge_depth(pts, e, p.edge_fraction, mid); break;
   case ExtentDepth::kMidDepth: c.z_ext = mid; break;
   case ExtentDepth::kFrontFace: c.z_ext = depth.median; break;
@@ -396,7 +405,12 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
                  (e.bbox.y - 0.5 - g.cy) / fy, (e.bbox.br().y - 0.5 - g.cy) / fy};
   std::vector<double> z = depths_of(pts);
   const Summary depth = summarize(z);
-  const Converter c = choose_converter(p, s, depth, z, pts, e, g);
+  const cv::Size vs = g.view_size;
+  m.clipped.top = e.bbox.y == 0;
+  m.clipped.left = e.bbox.x == 0;
+  m.clipped.bottom = e.bbox.br().y == vs.height;
+  m.clipped.right = e.bbox.br().x == vs.width;
+  const Converter c = choose_converter(p, s, depth, z, pts, e, g, m.clipped);
 
   m.tree_present = true;
   m.points = pts.size();
@@ -412,11 +426,6 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
   m.extent_depth_m = c.z_ext * kMmToM;
   m.width_m = (c.x(s.right) - c.x(s.left)) * kMmToM;
   m.height_m = (c.y(s.bottom) - c.y(s.top)) * kMmToM;
-  const cv::Size vs = g.view_size;
-  m.clipped.top = e.bbox.y == 0;
-  m.clipped.left = e.bbox.x == 0;
-  m.clipped.bottom = e.bbox.br().y == vs.height;
-  m.clipped.right = e.bbox.br().x == vs.width;
 
   // Area and perimeter at the equivalent depth, so that area ~ width * height for a box.
   const double area_px = left.area_px > 0 ? left.area_px : double(cv::countNonZero(left.mask));

@@ -1,5 +1,7 @@
 #include "treestereo/match.hpp"
 
+#include "zncc.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -7,109 +9,13 @@
 
 namespace treestereo {
 
+using detail::centred_patch;
+using detail::gauss_newton_x;
+using detail::parabola_offset;
+using detail::sample;
+using detail::zncc;
+
 namespace {
-
-// Zero-mean copy of a square patch and its norm; false when it has no texture.
-bool centred_patch(const cv::Mat &img, int cx, int cy, int h, std::vector<float> &out, double &norm)
-{
-  const int n = 2 * h + 1;
-  out.resize(std::size_t(n * n));
-  double sum = 0;
-  for (int y = 0; y < n; ++y) {
-    const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y) + (cx - h);
-    for (int x = 0; x < n; ++x) {
-      out[std::size_t(y * n + x)] = row[x];
-      sum += row[x];
-    }
-  }
-  const float mean = float(sum / double(n * n));
-  double ss = 0;
-  for (float &v : out) {
-    v -= mean;
-    ss += double(v) * v;
-  }
-  norm = std::sqrt(ss);
-  return norm > 1e-3 * n; // flat patch: no peak to find
-}
-
-// ZNCC of the centred left patch against the right patch centred at (cx, cy).
-double zncc(const std::vector<float> &lc, double lnorm, const cv::Mat &img, int cx, int cy, int h)
-{
-  const int n = 2 * h + 1;
-  double cross = 0, sum = 0, ss = 0;
-  for (int y = 0; y < n; ++y) {
-    const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y) + (cx - h);
-    const float *l = &lc[std::size_t(y * n)];
-    for (int x = 0; x < n; ++x) {
-      const double v = row[x];
-      cross += double(l[x]) * v; // sum(lc) = 0, so the right mean drops out of the cross term
-      sum += v;
-      ss += v * v;
-    }
-  }
-  const double var = ss - sum * sum / double(n * n);
-  if (var <= 1e-9)
-    return -1.0;
-  return cross / (lnorm * std::sqrt(var));
-}
-
-// Linear interpolation of a row at x (x within [0, cols - 1)).
-inline double sample(const std::uint8_t *row, double x)
-{
-  const int i = int(std::floor(x));
-  const double f = x - i;
-  return (1.0 - f) * row[i] + f * row[i + 1];
-}
-
-// Gauss-Newton steps on the right patch's x position xr (sub-pixel, same row): minimises the
-// difference of the zero-mean, unit-norm left and right patches, the right one interpolated
-// linearly. A parabola through integer-offset scores is pulled towards whole pixels (by up to
-// 0.3 px on smooth texture); this removes most of that bias. Returns xr unchanged when a step
-// would leave the image or +-1 px around the start.
-double gauss_newton_x(const std::vector<float> &lc, double lnorm, const cv::Mat &img, double xr,
-                      int cy, int h)
-{
-  const int n = 2 * h + 1;
-  std::vector<double> v(std::size_t(n * n)), g(std::size_t(n * n));
-  const double x0 = xr;
-  for (int iter = 0; iter < 3; ++iter) {
-    if (xr - h - 1.5 < 0 || xr + h + 1.5 >= img.cols - 1 || std::abs(xr - x0) > 1.0)
-      return x0;
-    double sum = 0;
-    for (int y = 0; y < n; ++y) {
-      const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y);
-      for (int x = 0; x < n; ++x) {
-        const double px = xr - h + x;
-        const std::size_t k = std::size_t(y * n + x);
-        v[k] = sample(row, px);
-        g[k] = 0.5 * (sample(row, px + 1.0) - sample(row, px - 1.0));
-        sum += v[k];
-      }
-    }
-    const double mean = sum / double(n * n);
-    double ss = 0;
-    for (double &e : v) {
-      e -= mean;
-      ss += e * e;
-    }
-    const double rnorm = std::sqrt(ss);
-    if (rnorm < 1e-6)
-      return x0;
-    double num = 0, den = 0;
-    for (std::size_t k = 0; k < v.size(); ++k) {
-      const double gn = g[k] / rnorm;
-      num += (double(lc[k]) / lnorm - v[k] / rnorm) * gn;
-      den += gn * gn;
-    }
-    if (den <= 1e-12)
-      return x0;
-    const double step = std::clamp(num / den, -0.5, 0.5);
-    xr += step;
-    if (std::abs(step) < 1e-3)
-      break;
-  }
-  return std::abs(xr - x0) <= 1.0 ? xr : x0;
-}
 
 // Sub-pixel position of the best match of the zero-mean template `lc` (centred on a pixel of the
 // other view) along row `yi` of `img`, searched at integer centres xc-S..xc+S: the integer peak,
@@ -127,8 +33,7 @@ bool best_position(const std::vector<float> &lc, double lnorm, const cv::Mat &im
   if (std::abs(best) > S || c0 < min_zncc)
     return false; // the peak lies outside the search range, or there is no clear peak
   const double cm = scores[std::size_t(best + S)], cp = scores[std::size_t(best + S + 2)];
-  const double curv = cm - 2.0 * c0 + cp;
-  const double delta = curv < 0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0;
+  const double delta = parabola_offset(cm, c0, cp);
   x_out = gauss_newton_x(lc, lnorm, img, double(xc + best) + delta, yi, h);
   return true;
 }
@@ -171,10 +76,8 @@ double sub_peak(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, i
   const int b = int(std::max_element(scores.begin(), scores.end()) - scores.begin());
   if (b == 0 || b == 2 * range)
     return double(b - range); // at the border: no parabola
-  const double cm = scores[std::size_t(b - 1)], c0 = scores[std::size_t(b)],
-               cp = scores[std::size_t(b + 1)];
-  const double curv = cm - 2.0 * c0 + cp;
-  return double(b - range) + (curv < 0 ? std::clamp(0.5 * (cm - cp) / curv, -0.5, 0.5) : 0.0);
+  return double(b - range) + parabola_offset(scores[std::size_t(b - 1)], scores[std::size_t(b)],
+                                             scores[std::size_t(b + 1)]);
 }
 
 // The two-layer test: the four quadrants of the (2h+1)^2 window (each with the centre row and

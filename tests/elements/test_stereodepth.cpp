@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -480,6 +481,133 @@ GST_START_TEST(test_dense_without_vegetation_uses_the_whole_view)
 }
 GST_END_TEST;
 
+/* Seeds on the plane of dense_scene(): exact matches at its disparity inside the ellipse. */
+static std::vector<GstTreeStereoMatch> plane_matches(const DenseScene &s, int n)
+{
+  std::vector<GstTreeStereoMatch> m;
+  for (int i = 0; i < n; i++) {
+    const float x = float(s.box.x + 60 + 6 * i), y = float(s.box.y + 70 + 4 * i);
+    m.push_back({x, y, float(x - s.d), y, 0.1f});
+  }
+  return m;
+}
+
+GST_START_TEST(test_sparse_densify_grid_on_the_canopy)
+{
+  const DenseScene s = dense_scene();
+  const double z_true = s.z();
+  const std::vector<GstTreeStereoMatch> seeds = plane_matches(s, 20);
+  Rig r = rig_new(dense_caps(s).c_str(), nullptr);
+  gboolean densify = FALSE;
+  g_object_get(r.h->element, "densify", &densify, NULL);
+  fail_unless(densify, "densify is on by default");
+  GstBuffer *in = dense_frame(s);
+  add_vegetation(in, s, true);
+  gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
+                                          seeds.data(), guint(seeds.size()));
+  GstBuffer *out = gst_harness_push_and_pull(r.h, in);
+  const GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(out);
+  fail_unless(pm != nullptr);
+  fail_if(pm->dense);
+  fail_unless(pm->depth_map == nullptr);
+  /* automatic step: about 4000 grid points on the ellipse (area ~ pi * 120 * 108 px) */
+  const int area = cv::countNonZero(s.mask);
+  const int step = int(std::lround(std::sqrt(area / 4000.0)));
+  const guint n_grid = pm->stats.n_grid;
+  fail_unless(n_grid > 0.8 * area / (step * step), "%u grid points of ~%d", n_grid,
+              area / (step * step));
+  fail_unless_equals_int(pm->n_points, seeds.size() + n_grid);
+  for (guint i = 0; i < seeds.size(); i++) {
+    fail_unless_equals_int(pm->points[i].match_index, i);
+    fail_unless(std::abs(pm->points[i].z - z_true) <= 1e-3 * z_true);
+  }
+  for (guint i = guint(seeds.size()); i < pm->n_points; i++) {
+    const GstTreeStereoPoint &p = pm->points[i];
+    const int x = int(p.match_index % s.g.w), y = int(p.match_index / s.g.w);
+    fail_unless(s.mask.at<uchar>(y, x) != 0, "grid point %u off the mask", i);
+    fail_unless_equals_int(x % step, step / 2);
+    fail_unless_equals_int(y % step, step / 2);
+    fail_unless(p.valid);
+    /* within 0.2 px of disparity (as lib's densify test), 0.56 % of depth here */
+    fail_unless(std::abs(p.z - z_true) <= 0.2 / s.d * z_true, "grid point %u: Z %f, true %f", i,
+                p.z, z_true);
+    const double xl = x, yl = y;
+    fail_unless(std::abs(p.x - (xl - s.g.cxl) * p.z / s.g.f) <= 1e-3 * p.z);
+    fail_unless(std::abs(p.y - (yl - s.g.cy) * p.z / s.g.f) <= 1e-3 * p.z);
+  }
+  fail_unless(near_rel(pm->stats.median_z_mm, z_true, 0.03 / s.d), "median %f", pm->stats.median_z_mm);
+  gboolean dense = TRUE;
+  GstTreeStereoDepthStats ms{};
+  pop_depth_message(r.bus, &dense, &ms, nullptr);
+  fail_if(dense);
+  expect_stats_equal(ms, pm->stats);
+  fail_unless_equals_int(ms.n_grid, n_grid);
+  gst_buffer_unref(out);
+
+  /* densify=false: the matches' points alone, the pixels untouched */
+  g_object_set(r.h->element, "densify", FALSE, "post-messages", FALSE, NULL);
+  in = dense_frame(s);
+  add_vegetation(in, s, true);
+  gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
+                                          seeds.data(), guint(seeds.size()));
+  out = gst_harness_push_and_pull(r.h, in);
+  pm = gst_buffer_get_tree_stereo_points_meta(out);
+  fail_unless_equals_int(pm->n_points, seeds.size());
+  fail_unless_equals_int(pm->stats.n_grid, 0);
+  gst_buffer_unref(out);
+
+  /* densify-step=8 and no canopy in the vegetation meta: no grid points */
+  g_object_set(r.h->element, "densify", TRUE, "densify-step", 8, NULL);
+  in = dense_frame(s);
+  add_vegetation(in, s, false);
+  gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
+                                          seeds.data(), guint(seeds.size()));
+  out = gst_harness_push_and_pull(r.h, in);
+  pm = gst_buffer_get_tree_stereo_points_meta(out);
+  fail_unless_equals_int(pm->stats.n_grid, 0);
+  gst_buffer_unref(out);
+  in = dense_frame(s);
+  add_vegetation(in, s, true);
+  gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
+                                          seeds.data(), guint(seeds.size()));
+  out = gst_harness_push_and_pull(r.h, in);
+  pm = gst_buffer_get_tree_stereo_points_meta(out);
+  fail_unless(pm->stats.n_grid > 0.8 * area / 64 && pm->stats.n_grid <= guint(area / 64 + 40));
+  for (guint i = guint(seeds.size()); i < pm->n_points; i++)
+    fail_unless_equals_int((pm->points[i].match_index % s.g.w) % 8, 4);
+  gst_buffer_unref(out);
+  fail_unless(gst_bus_pop_filtered(r.bus, GST_MESSAGE_WARNING) == nullptr);
+  rig_free(r);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_sparse_densify_without_vegetation_warns_once)
+{
+  const DenseScene s = dense_scene();
+  const std::vector<GstTreeStereoMatch> seeds = plane_matches(s, 20);
+  Rig r = rig_new(dense_caps(s).c_str(), "post-messages=false");
+  for (int i = 0; i < 2; i++) {
+    GstBuffer *in = dense_frame(s);
+    gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
+                                            seeds.data(), guint(seeds.size()));
+    GstBuffer *out = gst_harness_push_and_pull(r.h, in);
+    const GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(out);
+    fail_unless_equals_int(pm->n_points, seeds.size());
+    fail_unless_equals_int(pm->stats.n_grid, 0);
+    gst_buffer_unref(out);
+  }
+  GstMessage *w = gst_bus_pop_filtered(r.bus, GST_MESSAGE_WARNING);
+  fail_unless(w != nullptr, "no warning that densify cannot run");
+  GError *err = nullptr;
+  gst_message_parse_warning(w, &err, nullptr);
+  fail_unless(strstr(err->message, "vegetation") != nullptr, "%s", err->message);
+  g_error_free(err);
+  gst_message_unref(w);
+  fail_unless(gst_bus_pop_filtered(r.bus, GST_MESSAGE_WARNING) == nullptr, "warned twice");
+  rig_free(r);
+}
+GST_END_TEST;
+
 static Suite *stereodepth_suite(void)
 {
   Suite *s = suite_create("stereodepth");
@@ -490,6 +618,8 @@ static Suite *stereodepth_suite(void)
   tcase_add_test(tc, test_missing_metas_are_errors_naming_upstream);
   tcase_add_test(tc, test_dense_depth_map_on_the_canopy);
   tcase_add_test(tc, test_dense_without_vegetation_uses_the_whole_view);
+  tcase_add_test(tc, test_sparse_densify_grid_on_the_canopy);
+  tcase_add_test(tc, test_sparse_densify_without_vegetation_warns_once);
   return s;
 }
 

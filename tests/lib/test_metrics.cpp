@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <optional>
 
@@ -275,6 +276,30 @@ TEST(Metrics, ClippedFlagsFollowTheBorders)
   EXPECT_TRUE(m.clipped.left);
   EXPECT_FALSE(m.clipped.bottom);
   EXPECT_FALSE(m.clipped.right);
+  // The borders are no limbs. A sphere of 2 m whose centre is in the view but whose left and
+  // top limbs are beyond the borders: its extents are lower bounds, at least what the view shows
+  // at the nearest depth any of it can have (3000 - 1000 mm) from the far limbs.
+  const double fy = g.fy > 0 ? g.fy : g.fx;
+  const double t_left = (-0.5 - g.cx[LEFT]) / g.fx, t_top = (-0.5 - g.cy) / fy;
+  // Sparse (step 40) with the paper's depth noise along the rays, like a frame of matches.
+  const Scene b = cast(g, ellipsoid({-1500, -1100, 3000}, 1000, 1000), 40);
+  cv::RNG rng(3);
+  std::vector<Point3> noisy = b.points;
+  for (Point3 &p : noisy) {
+    const double k = 1.0 + rng.gaussian(13.6) / p.z;
+    p.x = float(p.x * k);
+    p.y = float(p.y * k);
+    p.z = float(p.z * k);
+  }
+  const TreeMetrics mb = compute_tree_metrics(b.sil, noisy, g, MetricsParams{});
+  ASSERT_TRUE(mb.clipped.left && mb.clipped.top && !mb.clipped.right && !mb.clipped.bottom);
+  const double x_right = -1.5 + 1.0, y_bottom = -1.1 + 1.0; // the far limbs (m)
+  std::printf("clipped sphere: width %.3f m, height %.3f m (true 2 m; at least %.3f, %.3f)\n",
+              mb.width_m, mb.height_m, x_right - t_left * 2.0, y_bottom - t_top * 2.0);
+  EXPECT_LE(mb.width_m, 2.0);
+  EXPECT_LE(mb.height_m, 2.0);
+  EXPECT_GE(mb.width_m, x_right - t_left * 2.0);
+  EXPECT_GE(mb.height_m, y_bottom - t_top * 2.0);
   const Scene c = cast(g, ellipsoid({0, 0, 3000}, 1000, 1000), 6);
   const TreeMetrics mc = compute_tree_metrics(c.sil, c.points, g, MetricsParams{});
   EXPECT_FALSE(mc.clipped.any());

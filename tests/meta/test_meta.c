@@ -396,7 +396,8 @@ GST_START_TEST (test_other_messages_round_trip)
   GstTreeStereoMatchStats ms = { GST_TREE_STEREO_MATCH_COSINE_NORM, 500, 480, 300, 9000, 12,
     34, 5, 6, 7, 20.5, 3.25, 1.5, 26.0
   }, ms2;
-  GstTreeStereoDepthStats ds = { 300, 290, 4, 6, 2001.5, 12.25, 1900, 2200, 3, 1850.5, 2250.25 },
+  GstTreeStereoDepthStats ds = { 300, 290, 4, 6, 2001.5, 12.25, 1900, 2200, 3, 1850.5, 2250.25,
+    250 },
       ds2;
   GstTreeStereoTimes t = { 1, 2, 3 }, t2;
   GstStructure *s;
@@ -466,6 +467,7 @@ GST_START_TEST (test_other_messages_round_trip)
   fail_unless_equals_float (ds2.p95_z_mm, ds.p95_z_mm);
   fail_unless_equals_float (ds2.accept_lo_mm, ds.accept_lo_mm);
   fail_unless_equals_float (ds2.accept_hi_mm, ds.accept_hi_mm);
+  fail_unless_equals_int (ds2.n_grid, ds.n_grid);
   gst_structure_remove_field (s, "dropped-disparity");
   fail_if (gst_tree_stereo_depth_message_parse (s, &dense, &ds2, NULL));
   gst_structure_free (s);

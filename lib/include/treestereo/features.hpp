@@ -2,6 +2,8 @@
 // vegetation's bounding box and optionally on a downscaled copy, reported at full resolution.
 #pragma once
 
+#include "treestereo/types.hpp"
+
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 
@@ -32,6 +34,10 @@ struct Features {
 // A view as 8-bit grey, without copying when it already is. Accepts CV_8UC1/3/4 (BGR/BGRA);
 // anything else throws std::runtime_error.
 cv::Mat to_gray8(const cv::Mat &view);
+
+// The same for packed pixels whose R, G and B sit where `order` says (RGB, xRGB, ABGR...; its
+// channels must be the view's): 0.299 R + 0.587 G + 0.114 B, rounded.
+cv::Mat to_gray8(const cv::Mat &view, const ChannelOrder &order);
 
 // The region detection should run on: the bounding box of the mask's non-zero pixels grown by
 // `margin` and clipped to the view; the whole view when the mask is empty; an empty rect when

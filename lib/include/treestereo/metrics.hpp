@@ -14,7 +14,9 @@
 //    no shape model. Z of an edge comes from the points within tangent_fraction of the extent
 //    from it: the surface recedes as sqrt(distance from the limb) there, so the depth is fitted
 //    as a0 + a1 * sqrt(distance) and a0 (the limb's depth) taken. Between the edges the
-//    conversion depth is interpolated linearly in slope (bands, area, perimeter). On the
+//    conversion depth is interpolated linearly in slope (bands, area, perimeter). An edge on the
+//    image border (see `clipped`) is no limb: it takes the median depth of those points instead,
+//    a depth where its ray is inside the canopy, so that the extent stays a lower bound. On the
 //    synthetic orchard (a union of ellipsoid clusters 0.9 x 0.7 x 0.6 m, whose depth and width
 //    differ) kRoundCanopy read 3-5 % wide, because the tree is no solid of revolution and the
 //    extreme clusters are not at the centre's depth; this reads within about 1.5 % (see

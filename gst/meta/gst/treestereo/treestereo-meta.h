@@ -211,7 +211,9 @@ GstTreeStereoMatchesMeta *gst_buffer_add_tree_stereo_matches_meta (GstBuffer *bu
  * @x: X (mm), rectified-left camera frame
  * @y: Y (mm)
  * @z: Z, depth (mm)
- * @match_index: index of the match in the matches meta this point comes from
+ * @match_index: index of the match in the matches meta this point comes from; for dense
+ *   points and densification grid points (the trailing #GstTreeStereoDepthStats.n_grid ones)
+ *   the left-view pixel index y * view width + x
  * @valid: FALSE when the point was dropped (out of range or an outlier)
  */
 typedef struct {
@@ -235,6 +237,8 @@ typedef struct {
  * @dropped_disparity: points without a finite depth (disparity - doffs <= 0); not in @n_valid
  * @accept_lo_mm: nearest depth accepted after the range and outlier cuts (0 when none kept)
  * @accept_hi_mm: farthest depth accepted after the range and outlier cuts (0 when none kept)
+ * @n_grid: of @n_points, how many are grid points of stereodepth's densification; they are
+ *   the last @n_grid points of the points meta (the first @n_points - @n_grid are the matches')
  */
 typedef struct {
   guint n_points;
@@ -248,6 +252,7 @@ typedef struct {
   guint dropped_disparity;
   gdouble accept_lo_mm;
   gdouble accept_hi_mm;
+  guint n_grid;
 } GstTreeStereoDepthStats;
 
 /**
@@ -496,7 +501,7 @@ gboolean gst_tree_stereo_match_message_parse (const GstStructure *s,
 
 /* stereodepth: "mode" ("sparse"/"dense"), "points", "valid", "dropped-disparity",
  * "dropped-range", "dropped-outlier", "median-depth", "mad-depth", "p05-depth", "p95-depth",
- * "accept-min-depth", "accept-max-depth" (mm). */
+ * "accept-min-depth", "accept-max-depth" (mm), "grid-points". */
 GstStructure *gst_tree_stereo_depth_message_structure (gboolean dense,
     const GstTreeStereoDepthStats *stats, const GstTreeStereoTimes *times);
 gboolean gst_tree_stereo_depth_message_parse (const GstStructure *s, gboolean *dense,
