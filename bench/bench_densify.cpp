@@ -17,7 +17,7 @@
 //   bench-densify [--sizes 1296x972] [--distances 1.8,2.0,2.2] [--seeds 1,2,3] [--lights 1.0]
 //                 [--step 0] [--target 4000] [--half-window 3] [--min-zncc 0.8]
 //                 [--margin 0.05] [--lr 1] [--tangent-fraction 0.1] [--tangent-min 15]
-//                 [--morph 5] [--area-weighted 1] [--outlier-k 3.5]
+//                 [--morph 5] [--reconstruct 1] [--area-weighted 1] [--outlier-k 3.5]
 #include "sweep.hpp"
 #include "treestereo/densify.hpp"
 #include "treestereo/depth.hpp"
@@ -116,6 +116,8 @@ int main(int argc, char **argv)
       depth_params.outlier_k = std::stod(v);
     else if (a == "--morph")
       segp.morph_size = std::stoi(v);
+    else if (a == "--reconstruct")
+      segp.reconstruct = std::stoi(v) != 0;
     else if (a == "--lr")
       dp.left_right_check = std::stoi(v) != 0;
     else {

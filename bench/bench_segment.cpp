@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <ctime>
 
 using namespace treestereo;
 
@@ -50,6 +51,22 @@ double time_ms(VegetationSegmenter &seg, const cv::Mat &view, Silhouette &out, i
   return median(ms);
 }
 
+double thread_cpu_ms()
+{
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
+// CPU time of one run on the calling thread (after a warm-up run).
+double cpu_ms(VegetationSegmenter &seg, const cv::Mat &view, Silhouette &out)
+{
+  seg.run(view, out);
+  const double t0 = thread_cpu_ms();
+  seg.run(view, out);
+  return thread_cpu_ms() - t0;
+}
+
 } // namespace
 
 int main(int argc, char **argv)
@@ -77,6 +94,31 @@ int main(int argc, char **argv)
       std::printf(" %.2f |", time_ms(seg, frame(cv::Rect(0, 0, s.width, s.height)), out, runs));
     }
     std::printf("\n");
+  }
+
+  // The opening by reconstruction's cost: both settings interleaved on the same view, on one
+  // thread, timed by the thread's CPU clock: on the shared machine, wall time mostly measures
+  // when the scheduler lets the thread run (steps of 4-5 ms), not the work.
+  cv::setNumThreads(1);
+  std::printf("\nexg-norm, opening by reconstruction off/on: CPU ms per view on one thread "
+              "(median of %d runs, interleaved)\n\n| size | reconstruct=false | "
+              "reconstruct=true |\n|---|---|---|\n",
+              runs);
+  for (const cv::Size &s : sizes) {
+    cv::Mat view;
+    cv::resize(src, view, s, 0, 0, cv::INTER_AREA);
+    SegmentParams p;
+    p.reconstruct = false;
+    VegetationSegmenter plain(p);
+    p.reconstruct = true;
+    VegetationSegmenter rec(p);
+    Silhouette out;
+    std::vector<double> ms[2];
+    for (int i = 0; i < runs; ++i) {
+      ms[0].push_back(cpu_ms(plain, view, out));
+      ms[1].push_back(cpu_ms(rec, view, out));
+    }
+    std::printf("| %dx%d | %.2f | %.2f |\n", s.width, s.height, median(ms[0]), median(ms[1]));
   }
   return 0;
 }

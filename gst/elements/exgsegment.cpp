@@ -56,6 +56,7 @@ enum {
   PROP_THRESHOLD,
   PROP_MIN_AREA,
   PROP_MORPH_SIZE,
+  PROP_RECONSTRUCT,
   PROP_KEEP,
   PROP_POST_MESSAGES,
 };
@@ -63,7 +64,7 @@ enum {
 namespace {
 
 struct Settings {
-  SegmentParams params; // index, threshold, morph_size, min_area, keep (order set per format)
+  SegmentParams params; // segmentation settings (the channel order is set per format)
   bool post_messages = DEFAULT_POST_MESSAGES;
   guint64 generation = 0; // bumped when a segmentation parameter changes
 };
@@ -239,9 +240,11 @@ static void ensure_segmenters(GstExgSegment *self, const Settings &s)
   for (auto &seg : st->segmenter)
     seg = std::make_unique<VegetationSegmenter>(p);
   st->seg_generation = s.generation;
-  GST_INFO_OBJECT(self, "segmenting with %s, threshold %g, morph-size %d, min-area %g, keep %s",
-                  veg_index_name(p.index), p.threshold, p.morph_size, p.min_area,
-                  keep_mode_name(p.keep));
+  GST_INFO_OBJECT(self,
+                  "segmenting with %s, threshold %g, morph-size %d, reconstruct %d, min-area %g, "
+                  "keep %s",
+                  veg_index_name(p.index), p.threshold, p.morph_size, int(p.reconstruct),
+                  p.min_area, keep_mode_name(p.keep));
 }
 
 static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *, GstVideoInfo *in_info,
@@ -379,6 +382,10 @@ static void gst_exg_segment_set_property(GObject *object, guint prop_id, const G
     s.params.morph_size = g_value_get_int(value);
     s.generation++;
     break;
+  case PROP_RECONSTRUCT:
+    s.params.reconstruct = g_value_get_boolean(value);
+    s.generation++;
+    break;
   case PROP_KEEP:
     s.params.keep = KeepMode(g_value_get_enum(value));
     s.generation++;
@@ -410,6 +417,9 @@ static void gst_exg_segment_get_property(GObject *object, guint prop_id, GValue 
     break;
   case PROP_MORPH_SIZE:
     g_value_set_int(value, s.params.morph_size);
+    break;
+  case PROP_RECONSTRUCT:
+    g_value_set_boolean(value, s.params.reconstruct);
     break;
   case PROP_KEEP:
     g_value_set_enum(value, int(s.params.keep));
@@ -470,6 +480,13 @@ static void gst_exg_segment_class_init(GstExgSegmentClass *klass)
                        "Diameter (px, made odd) of the open-then-close element that removes "
                        "specks and fills narrow gaps; 0 = off",
                        0, 255, d.morph_size, flags));
+  g_object_class_install_property(
+      gobject_class, PROP_RECONSTRUCT,
+      g_param_spec_boolean("reconstruct", "Reconstruct",
+                           "Opening by reconstruction: a region the opening keeps gets its whole "
+                           "thresholded shape back (leaf tips), specks stay removed; false = the "
+                           "plain opening, which shaves details narrower than morph-size",
+                           d.reconstruct, flags));
   g_object_class_install_property(
       gobject_class, PROP_KEEP,
       g_param_spec_enum("keep", "Keep", "Which connected regions make the canopy",

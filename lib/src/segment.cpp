@@ -7,6 +7,8 @@
 #include <array>
 #include <climits>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <stdexcept>
 
 namespace treestereo {
@@ -130,6 +132,14 @@ void check_view(const cv::Mat &view, const ChannelOrder &o)
 cv::Range stripe_rows(int s, int n, int rows)
 {
   return {int(std::int64_t(s) * rows / n), int(std::int64_t(s + 1) * rows / n)};
+}
+
+// Eight mask bytes at once (any alignment), to skip uniform stretches of a 0/255 mask.
+std::uint64_t word_at(const uchar *p)
+{
+  std::uint64_t v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
 }
 
 double region_perimeter(const std::vector<cv::Point> &contour, double epsilon)
@@ -402,6 +412,46 @@ void VegetationSegmenter::final_mask(const std::vector<uchar> &keep, int f, cv::
   cv::threshold(up_(cv::Rect(cv::Point(0, 0), mask.size())), mask, 127, 255, cv::THRESH_BINARY);
 }
 
+// Opening by reconstruction, exact: `opened` (bin_ opened, hence inside it) becomes the union of
+// bin_'s 8-connected components that hold one of its pixels. One labelling pass replaces the
+// geodesic dilations, whose count would be the length of the longest cut-off tip; labels_ is
+// free here (the components of the final mask are labelled after the close).
+void VegetationSegmenter::reconstruct(cv::Mat &opened)
+{
+  const int n = cv::connectedComponents(bin_, labels_, 8, CV_32S);
+  touched_.assign(std::size_t(n), 0);
+  uchar *t = touched_.data();
+  // A run of opened pixels in a row lies in one component (opened is inside bin_), so only the
+  // first pixel of each run is looked up: the scan reads the 8-bit mask, not the int labels.
+  const int w = opened.cols;
+  for (int y = 0; y < opened.rows; ++y) {
+    const uchar *o = opened.ptr<uchar>(y);
+    const int *l = labels_.ptr<int>(y);
+    int x = 0;
+    while (x < w) {
+      while (x + 8 <= w && word_at(o + x) == 0)
+        x += 8;
+      while (x < w && !o[x])
+        ++x;
+      if (x == w)
+        break;
+      t[l[x]] = 255;
+      while (x + 8 <= w && word_at(o + x) == ~std::uint64_t(0))
+        x += 8;
+      while (x < w && o[x])
+        ++x;
+    }
+  }
+  cv::parallel_for_(cv::Range(0, opened.rows), [&](const cv::Range &r) {
+    for (int y = r.start; y < r.end; ++y) {
+      const int *l = labels_.ptr<int>(y);
+      uchar *o = opened.ptr<uchar>(y);
+      for (int x = 0; x < opened.cols; ++x)
+        o[x] = t[l[x]];
+    }
+  });
+}
+
 void VegetationSegmenter::run(const cv::Mat &view, Silhouette &out)
 {
   const SegmentParams &p = params_;
@@ -424,6 +474,8 @@ void VegetationSegmenter::run(const cv::Mat &view, Silhouette &out)
   if (ks > 1) {
     const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(ks, ks));
     cv::morphologyEx(bin_, tmp_, cv::MORPH_OPEN, kernel);
+    if (p.reconstruct)
+      reconstruct(tmp_);
     cv::morphologyEx(tmp_, bin_, cv::MORPH_CLOSE, kernel);
   }
   const int n = cv::connectedComponentsWithStats(bin_, labels_, stats_, centroids_, 8, CV_32S);

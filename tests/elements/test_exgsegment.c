@@ -523,17 +523,19 @@ GST_START_TEST (test_invalid_property_values)
   GValue v = G_VALUE_INIT;
   gint index = -1, keep = -1, morph = -1;
   gdouble threshold = 0, min_area = 0;
-  gboolean post = FALSE;
+  gboolean post = FALSE, reconstruct = FALSE;
 
   /* defaults */
   g_object_get (e, "index", &index, "keep", &keep, "morph-size", &morph, "threshold",
-      &threshold, "min-area", &min_area, "post-messages", &post, NULL);
+      &threshold, "min-area", &min_area, "post-messages", &post, "reconstruct",
+      &reconstruct, NULL);
   fail_unless_equals_int (index, GST_TREE_STEREO_INDEX_EXG_NORM);
   fail_unless_equals_int (keep, 0);
   fail_unless_equals_int (morph, 5);
   fail_unless_equals_float (threshold, -1.0);
   fail_unless_equals_float (min_area, 64.0);
   fail_unless (post);
+  fail_unless (reconstruct);
 
   g_value_init (&v, G_TYPE_INT);
   g_value_set_int (&v, 256);

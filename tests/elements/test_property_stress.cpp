@@ -189,6 +189,7 @@ static std::vector<Knob> knobs(Rig &rig)
       {rig.rect, "max-skew", {"0", "20000000", "40000000"}},
       {seg, "threshold", {"-1", "0.1", "0.15"}},
       {seg, "morph-size", {"0", "3", "5"}},
+      {seg, "reconstruct", {"true", "false"}},
       {seg, "min-area", {"50", "200"}},
       {match, "method", {"euclidean", "cosine-norm"}},
       {match, "ratio", {"0.7", "0.8", "0.9"}},

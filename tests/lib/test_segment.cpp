@@ -224,6 +224,54 @@ TEST(Segment, MorphologyRemovesSaltNoise)
   EXPECT_GE(iou(s.mask, truth), 0.98);
 }
 
+TEST(Segment, OpeningByReconstructionRestoresTipsNotSpecks)
+{
+  // A disc with thin spikes (1 px straight, 1 px diagonal, 2 and 3 px wide: all narrower than
+  // the 5 px opening) and isolated specks (3x3 and single pixels), one of them 3 px from the
+  // disc's edge, which the close would join to the disc if it survived the opening.
+  const cv::Mat disc = disc_mask(kSize, kCentre, kRadius);
+  cv::Mat spikes(kSize, CV_8U, cv::Scalar(0));
+  const int cx = int(kCentre.x), cy = int(kCentre.y), r = int(kRadius);
+  spikes(cv::Rect(cx, cy - r - 30, 1, 40)).setTo(255);      // up, 1 px wide
+  spikes(cv::Rect(cx + r - 10, cy, 45, 2)).setTo(255);      // right, 2 px wide
+  spikes(cv::Rect(cx - 2, cy + r - 10, 3, 35)).setTo(255);  // down, 3 px wide
+  for (int i = 0; i < 35; ++i)                              // up-left, 1 px diagonal
+    spikes.at<uchar>(cy - 30 - i, cx - 30 - i) = 255;
+  spikes &= ~disc;
+  cv::Mat specks(kSize, CV_8U, cv::Scalar(0));
+  specks(cv::Rect(30, 30, 3, 3)).setTo(255);
+  specks(cv::Rect(340, 250, 3, 3)).setTo(255);
+  specks(cv::Rect(cx - r - 5, cy - 1, 3, 3)).setTo(255); // 3 px left of the disc
+  specks.at<uchar>(200, 60) = 255;
+  specks.at<uchar>(40, 370) = 255;
+  const cv::Mat shape = disc | spikes;
+  const cv::Mat img = paint(background(kSize), shape | specks, kLeaf);
+
+  SegmentParams p;
+  p.keep = KeepMode::All;
+  p.min_area = 0; // nothing but the morphology removes the specks
+  ASSERT_TRUE(p.reconstruct);
+  const Silhouette s = segment_vegetation(img, p);
+  ASSERT_TRUE(s.present);
+  EXPECT_EQ(s.n_regions, 1);
+  // Exactly the shape after the close step (which only fills the corners where the spikes
+  // meet the disc): the opening took nothing of it, and no speck came back.
+  cv::Mat expected;
+  cv::morphologyEx(shape, expected, cv::MORPH_CLOSE,
+                   cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+  EXPECT_EQ(cv::countNonZero(s.mask != expected), 0);
+  EXPECT_EQ(cv::countNonZero(s.mask & spikes), cv::countNonZero(spikes));
+  EXPECT_EQ(cv::countNonZero(s.mask & specks), 0);
+  EXPECT_EQ(s.bbox.y, cy - r - 30); // the top spike's tip
+
+  // The plain opening shaves the spikes off (what reconstruct gives back).
+  p.reconstruct = false;
+  const Silhouette plain = segment_vegetation(img, p);
+  EXPECT_LT(cv::countNonZero(plain.mask & spikes), cv::countNonZero(spikes) / 5);
+  EXPECT_EQ(cv::countNonZero(plain.mask & specks), 0);
+  EXPECT_GT(plain.bbox.y, cy - r - 5);
+}
+
 TEST(Segment, NothingGreenOrDegenerateFramesFindNothing)
 {
   const cv::Mat soil_sky = background(kSize, 5);
