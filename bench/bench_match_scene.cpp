@@ -8,7 +8,7 @@
 // Middlebury Jadeplant before/after, and timing rows.
 //
 //   bench-match-scene [--seeds 1,2,3] [--distances 1.8,2.2] [--size 1296x972] [--runs 3]
-//                     [--only table,errors,jadeplant,timing] [--set key=value,...] [--data DIR]
+//                     [--only table,errors,row,jadeplant,timing] [--set key=value,...] [--data DIR]
 //
 // --set changes the settings of the "two-layer test on" rows (keys: min-zncc, layer-tolerance, layer-half-window,
 // layer-search, half-window, search, scale, nfeatures, contrast-threshold, ratio,
@@ -259,6 +259,32 @@ void table(const std::vector<Pair> &pairs, const Options &o)
       }
 }
 
+// CPU time of the process (all threads), ms: unlike wall time, not inflated by other load.
+double cpu_ms()
+{
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return (double(u.ru_utime.tv_sec) + double(u.ru_stime.tv_sec)) * 1e3 +
+         (double(u.ru_utime.tv_usec) + double(u.ru_stime.tv_usec)) * 1e-3;
+}
+
+// One row of Table 1 (control, euclidean, constraints and two-layer test on, then --set): for
+// comparing settings quickly, e.g. on two seed sets.
+void one_row(const std::vector<Pair> &pairs, const Options &o)
+{
+  const MatchParams p =
+      element_params(pairs[0].scene.geometry, o.size.width, MatchMethod::Euclidean, true, o.set);
+  const double c0 = cpu_ms();
+  Row r = run_row(pairs, perturbations()[0], p, o.runs);
+  const double n = double(pairs.size()), cpu = (cpu_ms() - c0) / n / o.runs;
+  std::printf("| %s | %.0f/%.0f | %.0f | %zu | %zu | %zu | %.2f | %.1f | %.0f |\n",
+              o.set.empty() ? "(layer-tolerance=0.5)" : o.set.c_str(), double(r.kp_l) / n,
+              double(r.kp_r) / n, double(r.matches) / n, r.min_matches, r.evaluated, r.wrong,
+              r.evaluated ? 100.0 * double(r.evaluated - r.wrong) / double(r.evaluated) : 0.0,
+              median(r.ms), cpu);
+  std::fflush(stdout);
+}
+
 // Whether the left pixel (x, y) with true disparity t is hidden in the right view: a left pixel
 // further right on the row lands on the same right pixel with a larger disparity.
 bool occluded(const cv::Mat &d_true, int x, int y, float t)
@@ -393,14 +419,6 @@ void jadeplant(const Options &o)
     }
 }
 
-double cpu_ms()
-{
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return (double(u.ru_utime.tv_sec) + double(u.ru_stime.tv_sec)) * 1e3 +
-         (double(u.ru_utime.tv_usec) + double(u.ru_stime.tv_usec)) * 1e-3;
-}
-
 // The whole siftmatch step (both views detected concurrently, matching, refinement, filters),
 // on treetestsrc pairs with the true canopy mask (as exgsegment's would give) and without.
 void timing(const Options &o)
@@ -494,10 +512,12 @@ int main(int argc, char **argv)
       else throw std::runtime_error("unknown option " + a);
     }
     auto want = [&](const char *what) { return o.only.find(what) != std::string::npos; };
-    if (want("table") || want("errors")) {
+    if (want("table") || want("errors") || want("row")) {
       const std::vector<Pair> pairs = render_pairs(o);
       if (want("table"))
         table(pairs, o);
+      if (want("row"))
+        one_row(pairs, o);
       if (want("errors"))
         errors(pairs, o);
     }

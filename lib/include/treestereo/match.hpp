@@ -134,13 +134,14 @@ std::unique_ptr<Matcher> make_matcher(const MatcherParams &params);
 // the refined position; every one must peak within layer_tolerance px of it. A part on the other
 // depth layer peaks at its own disparity, or anywhere when it is flat. On 9 treetestsrc pairs
 // (layer_tolerance 0.5) it leaves 10 of 403 wrong matches and a third of the matches
-// (docs/results.md). Off by default: the matches it drops are where the depth varies, so the
-// canopy's measured thickness comes out low (docs/elements/siftmatch.md).
+// (docs/results.md). Off here, so lib's callers get every match; the siftmatch element turns it
+// on (0.5): with stereodepth's densification the chain measures the same with or without it
+// (docs/elements/siftmatch.md).
 struct RefineParams {
   int half_window = 3;   // 7x7 patches: fewer straddle a depth edge than 11x11
   int search = 2;        // px around the estimate
   double min_zncc = 0.8; // the correlation peak must be at least this
-  double layer_tolerance = -1;  // px; negative = off (the default: see above)
+  double layer_tolerance = -1;  // px; negative = off (lib's default; siftmatch's is 0.5)
   int layer_half_window = 5;    // quadrants of 6x6 px
   int layer_search = 3;         // px
 };
