@@ -3,7 +3,7 @@
 # Ends with the line "N passed, N failed, N skipped". Exit status 0 only when nothing failed.
 #
 # Stages (each counts its tests in the last line):
-#   1. the suite in build/ (meson test; includes a 1000-frame soak of the whole chain)
+#   1. the suite in build/ (meson test; includes a 1500-frame soak of the whole chain)
 #   2. the suite again with AddressSanitizer + UndefinedBehaviorSanitizer (scripts/test-sanitizers.sh)
 #   3. ThreadSanitizer on the property-change stress test (scripts/test-tsan.sh)
 #   4. each libFuzzer target for $TREESTEREO_FUZZ_SECONDS (default 60) s (scripts/fuzz.sh)

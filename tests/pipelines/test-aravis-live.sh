@@ -74,5 +74,6 @@ printf '%s\n' "$rts" | tail -n +5 | awk -v drops="$drops" '
       mean = sum / n
       printf "steady state: %d pairs, interval mean %.1f ms, min %.1f ms, max %.1f ms; %d pairs missing, %d frames dropped\n", NR, mean, min, max, missing, drops
       if (mean < 95 || mean > 105 || min < 50 || missing != drops) exit 1
-    }' || fail "pairs are not one frame period apart, or a drop is not a lost partner"
+    }' || { echo "pair running times (ns):" $rts; echo "drop running times (ns):" $drop_rts
+            fail "pairs are not one frame period apart, or a drop is not a lost partner"; }
 echo "OK: $n frames per camera, $metrics pairs measured, $startup_drops frames dropped at start-up, $drops after"
