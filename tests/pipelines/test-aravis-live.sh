@@ -64,7 +64,7 @@ drops=$(printf '%s\n' "$drop_rts" | awk -v s="$steady" 'NF && $1 > s' | grep -c 
 printf '%s\n' "$rts" | tail -n +5 | awk -v drops="$drops" '
     NR > 1 {
       d = ($1 - prev) / 1e6
-      if (d > 150) { missing += int(d / 100 + 0.5) - 1; next }
+      if (d > 150) { missing += int(d / 100 + 0.5) - 1; prev = $1; next }
       if (n == 0 || d < min) min = d
       if (d > max) max = d
       sum += d; n++
