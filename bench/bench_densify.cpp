@@ -18,6 +18,7 @@
 //                 [--step 0] [--target 4000] [--half-window 3] [--min-zncc 0.8]
 //                 [--margin 0.05] [--lr 1] [--tangent-fraction 0.1] [--tangent-min 15]
 //                 [--morph 5] [--reconstruct 1] [--area-weighted 1] [--outlier-k 3.5]
+#include "scene_pairs.hpp"
 #include "sweep.hpp"
 #include "treestereo/densify.hpp"
 #include "treestereo/depth.hpp"
@@ -39,31 +40,11 @@
 using namespace treestereo;
 using treestereo::bench::parse_list;
 using treestereo::bench::parse_sizes;
+using treestereo::bench::render_rectified;
+using treestereo::bench::RectifiedRender;
+using treestereo::bench::truth_depth_rectified;
 
 namespace {
-
-// The renderer's visible canopy depth splatted into the rectified left view (0 = none).
-cv::Mat truth_depth_rectified(const SceneRenderer &r, const GroundTruth &t, const StereoGeometry &g)
-{
-  cv::Mat zt(t.depth.size(), CV_32F, cv::Scalar(0));
-  const cv::Mat &rays = r.normalized_rays(0);
-  for (int y = 0; y < t.depth.rows; y++)
-    for (int x = 0; x < t.depth.cols; x++) {
-      const float z = t.depth.at<float>(y, x);
-      if (z <= 0 || !t.canopy_mask.at<uchar>(y, x))
-        continue;
-      const cv::Vec2f n = rays.at<cv::Vec2f>(y, x); // CV_32FC2 (scene.cpp)
-      const cv::Vec3d X = g.R1 * cv::Vec3d(n[0] * z, n[1] * z, z);
-      const int u = int(std::lround(g.fx * X[0] / X[2] + g.cx[0]));
-      const int v = int(std::lround(g.fy * X[1] / X[2] + g.cy));
-      if (u < 0 || v < 0 || u >= zt.cols || v >= zt.rows)
-        continue;
-      float &c = zt.at<float>(v, u);
-      if (c == 0 || X[2] < c)
-        c = float(X[2]);
-    }
-  return zt;
-}
 
 struct Errs {
   std::vector<double> d_cm, d_rel, h, w, t;
@@ -145,16 +126,11 @@ int main(int argc, char **argv)
           p.seed = std::uint64_t(sd);
           p.light = light;
           SceneRenderer r(p);
-          const StereoRectification rect = compute_rectification(r.calibration(), p.image_size);
+          const RectifiedRender rr = render_rectified(r, p.image_size);
+          const StereoRectification &rect = rr.rect;
           const StereoGeometry &g = rect.geometry;
-          cv::Mat rgb[2], rv[2];
-          GroundTruth t;
-          r.render(0, 0, rgb[0], &t);
-          r.render(1, 0, rgb[1]);
-          for (int v = 0; v < 2; ++v) {
-            cv::cvtColor(rgb[v], rgb[v], cv::COLOR_RGB2BGR);
-            rectify_view(rect, v, rgb[v], rv[v]);
-          }
+          const cv::Mat *rv = rr.view;
+          const GroundTruth &t = rr.truth_left;
           const Silhouette segl = segment_vegetation(rv[LEFT], segp);
           const Silhouette segr = segment_vegetation(rv[RIGHT], segp);
           MatchParams mp;

@@ -9,6 +9,7 @@
 // against the canopy's true 3D height and width. Prints markdown tables.
 //
 //   bench-extent [--sizes 1296x972] [--distances 1.8,2.0,2.2] [--seeds 1,2,3] [--lights 1.0]
+#include "scene_pairs.hpp"
 #include "sweep.hpp"
 #include "treestereo/depth.hpp"
 #include "treestereo/match.hpp"
@@ -28,6 +29,8 @@
 
 using namespace treestereo;
 using treestereo::bench::parse_list;
+using treestereo::bench::render_rectified;
+using treestereo::bench::RectifiedRender;
 
 namespace {
 
@@ -93,16 +96,11 @@ int main(int argc, char **argv)
         p.seed = std::uint64_t(sd);
         p.light = light;
         SceneRenderer r(p);
-        const StereoRectification rect = compute_rectification(r.calibration(), p.image_size);
+        const RectifiedRender rr = render_rectified(r, p.image_size);
+        const StereoRectification &rect = rr.rect;
         const StereoGeometry &g = rect.geometry;
-        cv::Mat rgb[2], rv[2];
-        GroundTruth t;
-        r.render(0, 0, rgb[0], &t);
-        r.render(1, 0, rgb[1]);
-        for (int v = 0; v < 2; ++v) {
-          cv::cvtColor(rgb[v], rgb[v], cv::COLOR_RGB2BGR);
-          rectify_view(rect, v, rgb[v], rv[v]);
-        }
+        const cv::Mat *rv = rr.view;
+        const GroundTruth &t = rr.truth_left;
         cv::Mat tmask;
         rectify_view(rect, LEFT, t.canopy_mask, tmask);
         cv::threshold(tmask, tmask, 127, 255, cv::THRESH_BINARY);

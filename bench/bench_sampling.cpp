@@ -3,6 +3,7 @@
 // triangulate) compares each matched point's depth with the renderer's truth at the same
 // rectified pixel, and the truth at the matched pixels with the truth over the whole canopy.
 //   bench-sampling [seeds (3)]
+#include "scene_pairs.hpp"
 #include "treestereo/scene.hpp"
 #include "treestereo/rectify.hpp"
 #include "treestereo/segment.hpp"
@@ -30,27 +31,11 @@ int main(int argc, char **argv)
     rectify_view(rect, 0, l, rl);
     rectify_view(rect, 1, r, rr);
     const StereoGeometry &g = rect.geometry;
-    // rectified truth depth: points of canopy pixels -> R1 -> project with fx,cx,cy; z-buffer
-    cv::Mat zt(p.image_size, CV_32F, cv::Scalar(0));
-    const cv::Mat &rays = R.normalized_rays(0);
+    // the visible canopy surface's depth: rectified into the left view, and every point of it
+    const cv::Mat zt = bench::truth_depth_rectified(R, t, g);
     std::vector<double> all;
-    for (int y = 0; y < t.depth.rows; y++)
-      for (int x = 0; x < t.depth.cols; x++) {
-        float z = t.depth.at<float>(y, x);
-        if (z <= 0 || !t.canopy_mask.at<uchar>(y, x))
-          continue;
-        cv::Vec2f n = rays.at<cv::Vec2f>(y, x);
-        cv::Vec3d X(n[0] * z, n[1] * z, z);
-        cv::Vec3d Xr = g.R1 * X;
-        all.push_back(Xr[2]);
-        int u = int(std::lround(g.fx * Xr[0] / Xr[2] + g.cx[0])),
-            v = int(std::lround(g.fy * Xr[1] / Xr[2] + g.cy));
-        if (u < 0 || v < 0 || u >= zt.cols || v >= zt.rows)
-          continue;
-        float &c = zt.at<float>(v, u);
-        if (c == 0 || Xr[2] < c)
-          c = float(Xr[2]);
-      }
+    for (const cv::Point3f &q : truth_in_frame(t, g.R1).canopy_points_mm)
+      all.push_back(q.z);
     SegmentParams sp;
     sp.order = ChannelOrder{0, 1, 2};
     Silhouette s = segment_vegetation(rl, sp);

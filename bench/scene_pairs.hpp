@@ -1,5 +1,6 @@
-// Rectified SceneRenderer (treetestsrc) pairs with per-pixel true disparity, for the matching
-// benchmarks. Header-only: shared by bench-siftmatch and bench-match-scene.
+// Rectified SceneRenderer (treetestsrc) pairs and their truth in the rectified frame, for the
+// benchmarks. Header-only: shared by bench-siftmatch, bench-match-scene, bench-extent,
+// bench-densify and bench-sampling.
 #pragma once
 
 #include "treestereo/rectify.hpp"
@@ -12,6 +13,53 @@
 #include <limits>
 
 namespace treestereo::bench {
+
+// Both views of `r` rendered (RGB -> BGR) and rectified with the rig's own calibration; the
+// left view's truth, per-pixel maps unrectified (truth_in_frame(truth, rect.geometry.R1) gives
+// its figures in the rectified frame).
+struct RectifiedRender {
+  StereoRectification rect;
+  cv::Mat view[2]; // BGR, rectified
+  GroundTruth truth_left;
+};
+
+inline RectifiedRender render_rectified(const SceneRenderer &r, cv::Size size)
+{
+  RectifiedRender out;
+  out.rect = compute_rectification(r.calibration(), size);
+  for (int v = 0; v < 2; ++v) {
+    cv::Mat rgb;
+    r.render(v, 0, rgb, v == LEFT ? &out.truth_left : nullptr);
+    cv::cvtColor(rgb, rgb, cv::COLOR_RGB2BGR);
+    rectify_view(out.rect, v, rgb, out.view[v]);
+  }
+  return out;
+}
+
+// The renderer's visible canopy depth (mm) splatted into the rectified left view, nearest
+// surface kept (0 = none): truth `t` of the left view of `r`, geometry of its rectification.
+inline cv::Mat truth_depth_rectified(const SceneRenderer &r, const GroundTruth &t,
+                                     const StereoGeometry &g)
+{
+  cv::Mat zt(t.depth.size(), CV_32F, cv::Scalar(0));
+  const cv::Mat &rays = r.normalized_rays(0);
+  for (int y = 0; y < t.depth.rows; y++)
+    for (int x = 0; x < t.depth.cols; x++) {
+      const float z = t.depth.at<float>(y, x);
+      if (z <= 0 || !t.canopy_mask.at<uchar>(y, x))
+        continue;
+      const cv::Vec2f n = rays.at<cv::Vec2f>(y, x); // CV_32FC2 (scene.cpp)
+      const cv::Vec3d X = g.R1 * cv::Vec3d(n[0] * z, n[1] * z, z);
+      const int u = int(std::lround(g.fx * X[0] / X[2] + g.cx[0]));
+      const int v = int(std::lround(g.fy * X[1] / X[2] + g.cy));
+      if (u < 0 || v < 0 || u >= zt.cols || v >= zt.rows)
+        continue;
+      float &c = zt.at<float>(v, u);
+      if (c == 0 || X[2] < c)
+        c = float(X[2]);
+    }
+  return zt;
+}
 
 // The true disparity of every rectified left pixel: the rendered depth made a 3D point along the
 // pixel's ray, carried to the rectified grid by the rectification's own map (nearest: no mixing of
