@@ -31,6 +31,8 @@
 using namespace treestereo;
 using treestereo::bench::parse_list;
 using treestereo::bench::parse_sizes;
+using treestereo::bench::Sweep;
+using treestereo::bench::sweep_option;
 
 namespace {
 
@@ -179,20 +181,14 @@ int main(int argc, char **argv)
   if (!g_getenv("GST_PLUGIN_PATH_1_0") && !g_getenv("GST_PLUGIN_PATH"))
     g_setenv("GST_PLUGIN_PATH_1_0", TREESTEREO_PLUGIN_BUILD_DIR, TRUE);
   gst_init(&argc, &argv);
-  std::string sizes = "1296x972,2592x1944", distances = "1.5:2.5:0.1", seeds = "1,2,3",
-              lights = "0.7,1.0,1.3", csv, siftmatch_props;
+  Sweep sweep{"1296x972,2592x1944", "1.5:2.5:0.1", "1,2,3", "0.7,1.0,1.3"};
+  std::string csv, siftmatch_props;
   int frames = 1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
-    if (a == "--sizes")
-      sizes = v;
-    else if (a == "--distances")
-      distances = v;
-    else if (a == "--seeds")
-      seeds = v;
-    else if (a == "--lights")
-      lights = v;
-    else if (a == "--frames")
+    if (sweep_option(a, v, sweep))
+      continue;
+    if (a == "--frames")
       frames = std::stoi(v);
     else if (a == "--csv")
       csv = v;
@@ -205,14 +201,14 @@ int main(int argc, char **argv)
   }
   std::vector<Result> all;
   gchar *dir = g_dir_make_tmp("bench-accuracy-XXXXXX", nullptr);
-  for (const cv::Size &size : parse_sizes(sizes)) {
+  for (const cv::Size &size : parse_sizes(sweep.sizes)) {
     SceneParams p;
     p.image_size = size;
     const std::string calib = std::string(dir) + "/rig.yml";
     save_calibration(rig_calibration(p), calib);
-    for (double d : parse_list(distances))
-      for (double s : parse_list(seeds))
-        for (double l : parse_list(lights)) {
+    for (double d : parse_list(sweep.distances))
+      for (double s : parse_list(sweep.seeds))
+        for (double l : parse_list(sweep.lights)) {
           Config c{size, d, std::uint64_t(s), l};
           std::vector<Result> r = run_config(c, frames, calib, siftmatch_props);
           for (const Result &x : r)

@@ -40,6 +40,8 @@
 using namespace treestereo;
 using treestereo::bench::parse_list;
 using treestereo::bench::parse_sizes;
+using treestereo::bench::Sweep;
+using treestereo::bench::sweep_option;
 using treestereo::bench::render_rectified;
 using treestereo::bench::RectifiedRender;
 using treestereo::bench::truth_depth_rectified;
@@ -62,22 +64,16 @@ std::string ms(const std::vector<double> &v)
 
 int main(int argc, char **argv)
 {
-  std::string sizes = "1296x972", distances = "1.8,2.0,2.2", seeds = "1,2,3", lights = "1.0";
+  Sweep sweep{"1296x972", "1.8,2.0,2.2", "1,2,3", "1.0"};
   DensifyParams dp;
   MetricsParams mpar;
   SegmentParams segp;
   DepthParams depth_params;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
-    if (a == "--sizes")
-      sizes = v;
-    else if (a == "--distances")
-      distances = v;
-    else if (a == "--seeds")
-      seeds = v;
-    else if (a == "--lights")
-      lights = v;
-    else if (a == "--step")
+    if (sweep_option(a, v, sweep))
+      continue;
+    if (a == "--step")
       dp.step = std::stoi(v);
     else if (a == "--target")
       dp.target_points = std::stoi(v);
@@ -116,10 +112,10 @@ int main(int argc, char **argv)
               "inconsistent | step | disp window | grid pt err median (mm) | p05..p95 (mm) | "
               "|err| > 2 cm | densify ms | truth dist (m) | SIFT dist err (cm) | grid dist err "
               "(cm) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-  for (const cv::Size &size : parse_sizes(sizes))
-    for (double d : parse_list(distances))
-      for (double sd : parse_list(seeds))
-        for (double light : parse_list(lights)) {
+  for (const cv::Size &size : parse_sizes(sweep.sizes))
+    for (double d : parse_list(sweep.distances))
+      for (double sd : parse_list(sweep.seeds))
+        for (double light : parse_list(sweep.lights)) {
           SceneParams p;
           p.image_size = size;
           p.distance_mm = d * 1000;

@@ -29,6 +29,8 @@
 
 using namespace treestereo;
 using treestereo::bench::parse_list;
+using treestereo::bench::Sweep;
+using treestereo::bench::sweep_option;
 using treestereo::bench::render_rectified;
 using treestereo::bench::RectifiedRender;
 
@@ -59,24 +61,16 @@ struct Errs {
 
 int main(int argc, char **argv)
 {
-  std::string sizes = "1296x972", distances = "1.8,2.0,2.2", seeds = "1,2,3", lights = "1.0";
+  Sweep sweep{"1296x972", "1.8,2.0,2.2", "1,2,3", "1.0"};
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
-    if (a == "--sizes")
-      sizes = v;
-    else if (a == "--distances")
-      distances = v;
-    else if (a == "--seeds")
-      seeds = v;
-    else if (a == "--lights")
-      lights = v;
-    else {
-      std::fprintf(stderr, "bench-extent: unknown option %s\n", a.c_str());
-      return 2;
-    }
+    if (sweep_option(a, v, sweep))
+      continue;
+    std::fprintf(stderr, "bench-extent: unknown option %s\n", a.c_str());
+    return 2;
   }
   int w = 0, h = 0;
-  if (std::sscanf(sizes.c_str(), "%dx%d", &w, &h) != 2) {
+  if (std::sscanf(sweep.sizes.c_str(), "%dx%d", &w, &h) != 2) {
     std::fprintf(stderr, "bench-extent: --sizes WxH\n");
     return 2;
   }
@@ -87,9 +81,9 @@ int main(int argc, char **argv)
   std::vector<double> dl, dr, dt, db;       // silhouette edge offsets seg - truth (px, outward +)
   std::printf("| d (m) | seed | light | seg bbox (px) | true bbox (px) | true H x W (m) | "
               "round-canopy H x W (m), seg+matched |\n|---|---|---|---|---|---|---|\n");
-  for (double d : parse_list(distances))
-    for (double sd : parse_list(seeds))
-      for (double light : parse_list(lights)) {
+  for (double d : parse_list(sweep.distances))
+    for (double sd : parse_list(sweep.seeds))
+      for (double light : parse_list(sweep.lights)) {
         SceneParams p;
         p.image_size = cv::Size(w, h);
         p.distance_mm = d * 1000;

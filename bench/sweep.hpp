@@ -41,4 +41,23 @@ inline std::vector<cv::Size> parse_sizes(const std::string &s)
   return v;
 }
 
+// The sweep's lists as given on the command line, parsed by the functions above.
+struct Sweep {
+  std::string sizes, distances, seeds, lights;
+};
+
+// Takes one of the sweep's options ("--sizes", "--distances", "--seeds", "--lights") with its
+// value into `s`; false for any other option.
+inline bool sweep_option(const std::string &option, const std::string &value, Sweep &s)
+{
+  std::string *field = option == "--sizes"       ? &s.sizes
+                       : option == "--distances" ? &s.distances
+                       : option == "--seeds"     ? &s.seeds
+                       : option == "--lights"    ? &s.lights
+                                                 : nullptr;
+  if (field)
+    *field = value;
+  return field != nullptr;
+}
+
 } // namespace treestereo::bench
