@@ -6,7 +6,8 @@
  * (`multiview-mode=side-by-side`, as stereorectify makes them) or in the single view of a plain
  * stream, and describes its shape: area, centroid, perimeter, complexity, bounding box and outer
  * contour (lib's VegetationSegmenter: a colour vegetation index, Otsu's threshold, morphology,
- * connected components; see docs/segmentation.md).
+ * connected components, boundary pixels decided by their leaf coverage; see
+ * docs/segmentation.md).
  *
  * The element works in place and does not touch the pixels. It attaches a
  * #GstTreeStereoVegetationMeta with the figures and a GRAY8 canopy mask per view, a
@@ -57,6 +58,7 @@ enum {
   PROP_MIN_AREA,
   PROP_MORPH_SIZE,
   PROP_RECONSTRUCT,
+  PROP_UNMIX_EDGES,
   PROP_KEEP,
   PROP_POST_MESSAGES,
 };
@@ -241,10 +243,10 @@ static void ensure_segmenters(GstExgSegment *self, const Settings &s)
     seg = std::make_unique<VegetationSegmenter>(p);
   st->seg_generation = s.generation;
   GST_INFO_OBJECT(self,
-                  "segmenting with %s, threshold %g, morph-size %d, reconstruct %d, min-area %g, "
-                  "keep %s",
+                  "segmenting with %s, threshold %g, morph-size %d, reconstruct %d, unmix-edges %d, "
+                  "min-area %g, keep %s",
                   veg_index_name(p.index), p.threshold, p.morph_size, int(p.reconstruct),
-                  p.min_area, keep_mode_name(p.keep));
+                  int(p.unmix_edges), p.min_area, keep_mode_name(p.keep));
 }
 
 static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *, GstVideoInfo *in_info,
@@ -386,6 +388,10 @@ static void gst_exg_segment_set_property(GObject *object, guint prop_id, const G
     s.params.reconstruct = g_value_get_boolean(value);
     s.generation++;
     break;
+  case PROP_UNMIX_EDGES:
+    s.params.unmix_edges = g_value_get_boolean(value);
+    s.generation++;
+    break;
   case PROP_KEEP:
     s.params.keep = KeepMode(g_value_get_enum(value));
     s.generation++;
@@ -420,6 +426,9 @@ static void gst_exg_segment_get_property(GObject *object, guint prop_id, GValue 
     break;
   case PROP_RECONSTRUCT:
     g_value_set_boolean(value, s.params.reconstruct);
+    break;
+  case PROP_UNMIX_EDGES:
+    g_value_set_boolean(value, s.params.unmix_edges);
     break;
   case PROP_KEEP:
     g_value_set_enum(value, int(s.params.keep));
@@ -487,6 +496,14 @@ static void gst_exg_segment_class_init(GstExgSegmentClass *klass)
                            "thresholded shape back (leaf tips), specks stay removed; false = the "
                            "plain opening, which shaves details narrower than morph-size",
                            d.reconstruct, flags));
+  g_object_class_install_property(
+      gobject_class, PROP_UNMIX_EDGES,
+      g_param_spec_boolean("unmix-edges", "Unmix edges",
+                           "Decide the pixels on the canopy's boundary by how much of each is "
+                           "leaf (linear unmixing between the canopy and background colours "
+                           "around it, canopy from half up) instead of by the threshold, which "
+                           "drops edge pixels mixed with bright sky; false = thresholded edges",
+                           d.unmix_edges, flags));
   g_object_class_install_property(
       gobject_class, PROP_KEEP,
       g_param_spec_enum("keep", "Keep", "Which connected regions make the canopy",

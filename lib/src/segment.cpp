@@ -231,6 +231,8 @@ void validate(const SegmentParams &p)
     throw std::runtime_error("segment: contour_epsilon must be in 0..100 px");
   if (!std::isfinite(p.threshold) || (p.otsu_floor && !std::isfinite(*p.otsu_floor)))
     throw std::runtime_error("segment: threshold and otsu_floor must be finite");
+  if (!(p.unmix_min_contrast >= 0) || p.unmix_min_contrast > 442)
+    throw std::runtime_error("segment: unmix_min_contrast must be in 0..442 (8-bit RGB levels)");
 }
 
 int otsu_bin(const std::vector<int> &hist)
@@ -452,6 +454,78 @@ void VegetationSegmenter::reconstruct(cv::Mat &opened)
   });
 }
 
+// Boundary pixels (those whose 3x3 neighbourhood holds both classes) are decided by their leaf
+// fraction alpha in p = B + alpha (F - B), the least-squares projection onto the line between
+// the local canopy colour F and background colour B. F and B come from the 5x5 window's pixels
+// that are not boundary pixels themselves (those are the mixed ones). All decisions are made on
+// the mask as it was, then applied, so the result does not depend on the scan order.
+void VegetationSegmenter::unmix_edges(const cv::Mat &view, const cv::Rect &box, cv::Mat &mask)
+{
+  constexpr int r = 2;
+  const cv::Rect roi = cv::Rect(box.x - r - 1, box.y - r - 1, box.width + 2 * r + 2,
+                                box.height + 2 * r + 2) & cv::Rect(cv::Point(0, 0), view.size());
+  const cv::Mat m = mask(roi), v = view(roi);
+  const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
+  // Beyond the image: background for the dilation, canopy for the erosion, so a canopy that
+  // touches the border has no boundary there (nothing is known beyond it).
+  cv::dilate(m, dil_, k3, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::erode(m, ero_, k3, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(255));
+  const ChannelOrder &o = params_.order;
+  const int cn = view.channels();
+  const double min_dd = params_.unmix_min_contrast * params_.unmix_min_contrast;
+  const auto boundary = [&](int x, int y) { return dil_.at<uchar>(y, x) && !ero_.at<uchar>(y, x); };
+  // Whether boundary pixel (x, y) of the roi is on the other side of half coverage than the
+  // mask has it.
+  const auto unmixed_class_differs = [&](int x, int y) {
+    double f[3] = {0, 0, 0}, b[3] = {0, 0, 0};
+    int nf = 0, nb = 0;
+    for (int yy = std::max(0, y - r); yy <= std::min(m.rows - 1, y + r); ++yy) {
+      const uchar *mr = m.ptr<uchar>(yy), *vr = v.ptr<uchar>(yy);
+      for (int xx = std::max(0, x - r); xx <= std::min(m.cols - 1, x + r); ++xx) {
+        if (boundary(xx, yy))
+          continue;
+        const uchar *px = vr + xx * cn;
+        double *acc = mr[xx] ? f : b;
+        (mr[xx] ? nf : nb) += 1;
+        acc[0] += px[o.r];
+        acc[1] += px[o.g];
+        acc[2] += px[o.b];
+      }
+    }
+    if (nf < 3 || nb < 3)
+      return false;
+    const uchar *px = v.ptr<uchar>(y) + x * cn;
+    const double q[3] = {double(px[o.r]), double(px[o.g]), double(px[o.b])};
+    double dd = 0, pd = 0;
+    for (int c = 0; c < 3; ++c) {
+      f[c] /= nf;
+      b[c] /= nb;
+      dd += (f[c] - b[c]) * (f[c] - b[c]);
+      pd += (q[c] - b[c]) * (f[c] - b[c]);
+    }
+    return dd >= min_dd && (pd >= 0.5 * dd) != bool(m.at<uchar>(y, x));
+  };
+  const int nstripes = std::max(1, std::min(m.rows, 4 * cv::getNumThreads()));
+  flip_.resize(std::size_t(nstripes));
+  cv::parallel_for_(cv::Range(0, nstripes), [&](const cv::Range &sr) {
+    for (int st = sr.start; st < sr.end; ++st) {
+      std::vector<cv::Point> &flip = flip_[std::size_t(st)];
+      flip.clear();
+      const cv::Range rows = stripe_rows(st, nstripes, m.rows);
+      for (int y = rows.start; y < rows.end; ++y) {
+        const uchar *dr = dil_.ptr<uchar>(y), *er = ero_.ptr<uchar>(y);
+        for (int x = 0; x < m.cols; ++x)
+          if (dr[x] != er[x] && unmixed_class_differs(x, y))
+            flip.emplace_back(x, y);
+      }
+    }
+  });
+  cv::Mat out = mask(roi);
+  for (const std::vector<cv::Point> &flip : flip_)
+    for (const cv::Point &q : flip)
+      out.at<uchar>(q) = out.at<uchar>(q) ? 0 : 255;
+}
+
 void VegetationSegmenter::run(const cv::Mat &view, Silhouette &out)
 {
   const SegmentParams &p = params_;
@@ -498,6 +572,8 @@ void VegetationSegmenter::run(const cv::Mat &view, Silhouette &out)
     }
   box = cv::Rect(box.x * f - f, box.y * f - f, box.width * f + 2 * f, box.height * f + 2 * f) &
         cv::Rect(cv::Point(0, 0), view.size());
+  if (p.unmix_edges) // boundary pixels are inside the box already (one block around the regions)
+    unmix_edges(view, box, out.mask);
   const cv::Moments mo = cv::moments(out.mask(box), true);
   if (mo.m00 <= 0) {
     clear(out, threshold);

@@ -250,6 +250,7 @@ TEST(Segment, OpeningByReconstructionRestoresTipsNotSpecks)
   SegmentParams p;
   p.keep = KeepMode::All;
   p.min_area = 0; // nothing but the morphology removes the specks
+  p.unmix_edges = false; // it would give back the corners the close fills (background colour)
   ASSERT_TRUE(p.reconstruct);
   const Silhouette s = segment_vegetation(img, p);
   ASSERT_TRUE(s.present);
@@ -270,6 +271,67 @@ TEST(Segment, OpeningByReconstructionRestoresTipsNotSpecks)
   EXPECT_LT(cv::countNonZero(plain.mask & spikes), cv::countNonZero(spikes) / 5);
   EXPECT_EQ(cv::countNonZero(plain.mask & specks), 0);
   EXPECT_GT(plain.bbox.y, cy - r - 5);
+}
+
+TEST(Segment, UnmixedEdgesFollowLeafCoverage)
+{
+  // A leaf disc against bright sky, each pixel the area average of 8x8 sub-pixels (a lens and
+  // sensor integrate light over the pixel), so every pixel's leaf coverage is known. The ideal
+  // mask is the pixels at least half leaf: about pi r^2 pixels, edge within a pixel everywhere.
+  const int ss = 8;
+  const cv::Size big = kSize * ss;
+  const cv::Scalar sky(235, 215, 200), leaf(40, 120, 50); // BGR
+  cv::Mat hi(big, CV_8UC3, sky), cover_hi(big, CV_32F, cv::Scalar(0));
+  cv::circle(cover_hi, cv::Point(cvRound((kCentre.x + 0.5) * ss - 0.5), cvRound((kCentre.y + 0.5) * ss - 0.5)),
+             int(kRadius * ss), cv::Scalar(1), cv::FILLED);
+  hi.setTo(leaf, cover_hi > 0.5f);
+  cv::Mat img, cover;
+  cv::resize(hi, img, kSize, 0, 0, cv::INTER_AREA);
+  cv::resize(cover_hi, cover, kSize, 0, 0, cv::INTER_AREA);
+  const cv::Mat ideal = cover >= 0.5f;
+  const double ideal_area = cv::countNonZero(ideal);
+
+  // Where the threshold puts the edge depends on the threshold (leaf ExG-norm 0.71, sky's
+  // about 0): a high one loses the mixed ring, a low one takes pixels that are mostly sky.
+  // Unmixed, the edge is where the leaf covers half the pixel, whatever the threshold.
+  const double r_ideal = std::sqrt(ideal_area / CV_PI);
+  const cv::Rect ib = cv::boundingRect(ideal);
+  SegmentParams p;
+  ASSERT_TRUE(p.unmix_edges);
+  Silhouette t;
+  for (double thr : {0.06, 0.35, 0.55}) {
+    SCOPED_TRACE(thr);
+    p.threshold = thr;
+    p.unmix_edges = false;
+    t = segment_vegetation(img, p);
+    p.unmix_edges = true;
+    const Silhouette s = segment_vegetation(img, p);
+    ASSERT_TRUE(s.present && t.present);
+    const double r_thr = std::sqrt(t.area_px / CV_PI), r_mix = std::sqrt(s.area_px / CV_PI);
+    if (thr > 0.5) {
+      EXPECT_LT(r_thr, r_ideal - 0.3);
+    }
+    if (thr < 0.2) {
+      EXPECT_GT(r_thr, r_ideal + 0.15);
+    }
+    // The pixels more than half leaf, to within a few pixels of the whole ring; those that
+    // differ are close to half (the 5x5 mean colours carry the neighbours' coverage).
+    const cv::Mat differ = s.mask != ideal;
+    EXPECT_LT(cv::countNonZero(differ), 8) << "radius " << r_mix << " ideal " << r_ideal;
+    for (int y = 0; y < kSize.height; ++y)
+      for (int x = 0; x < kSize.width; ++x)
+        if (differ.at<uchar>(y, x)) {
+          EXPECT_NEAR(cover.at<float>(y, x), 0.5, 0.15) << "at " << x << "," << y;
+        }
+    EXPECT_LE(std::abs(s.bbox.y - ib.y) + std::abs(s.bbox.br().y - ib.br().y), 1);
+    EXPECT_LE(std::abs(s.bbox.x - ib.x) + std::abs(s.bbox.br().x - ib.br().x), 1);
+  }
+
+  // On a background of about the leaf's colour nothing is unmixed: the threshold stands.
+  p.unmix_edges = true;
+  p.unmix_min_contrast = 442;
+  const Silhouette u = segment_vegetation(img, p);
+  EXPECT_EQ(cv::countNonZero(u.mask != t.mask), 0);
 }
 
 TEST(Segment, NothingGreenOrDegenerateFramesFindNothing)

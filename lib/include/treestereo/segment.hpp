@@ -78,6 +78,17 @@ struct SegmentParams {
   // morph_size (the canopy's top read 2 px low on the synthetic orchard, docs/results.md).
   // No effect when morph_size is 0.
   bool reconstruct = true;
+  // Sub-pixel edges: the pixels on either side of the final mask's boundary are classified
+  // again by linear unmixing instead of by the index threshold. Each is written as
+  // B + alpha (F - B), F and B the mean colours of the canopy and background pixels around it
+  // (5x5, boundary pixels left out), and is canopy when alpha >= 0.5, i.e. when leaf covers at
+  // least half of it. A normalised index of a pixel half leaf, half bright sky is much less
+  // than half the leaf's (the sky's brightness dominates R+G+B), so the threshold alone drops
+  // the canopy's outer row: 1.3 px at the top and 1.1 px at the bottom of the synthetic
+  // orchard (docs/results.md). Left as thresholded where the two colours are within
+  // unmix_min_contrast of each other (canopy on a green background: no reliable alpha).
+  bool unmix_edges = true;
+  double unmix_min_contrast = 24.0; // 8-bit levels, Euclidean in RGB
   KeepMode keep = KeepMode::Largest;
   // Regions smaller than this (px, after morphology) are dropped in both keep modes.
   double min_area = 64.0;
@@ -126,6 +137,7 @@ private:
   std::vector<uchar> kept_labels(int n, int f, int &n_kept) const;
   void final_mask(const std::vector<uchar> &keep, int f, cv::Mat &mask);
   void reconstruct(cv::Mat &opened);
+  void unmix_edges(const cv::Mat &view, const cv::Rect &box, cv::Mat &mask);
 
   SegmentParams params_;
   std::vector<std::vector<int>> stripe_hist_;
@@ -133,6 +145,8 @@ private:
   cv::Mat cov_, bin_, tmp_, fin_, up_; // work-scale coverage, binary, morphology, result; upscaled
   cv::Mat labels_, stats_, centroids_;
   std::vector<uchar> touched_; // per label of the thresholded mask: reached by the opening
+  cv::Mat dil_, ero_;           // unmix_edges: the mask dilated / eroded by one pixel
+  std::vector<std::vector<cv::Point>> flip_; // unmix_edges: per stripe, pixels that change
 };
 
 // One-shot convenience around VegetationSegmenter.
