@@ -75,7 +75,7 @@ int main(int argc, char **argv)
     return 2;
   }
   const char *inputs[] = {"seg mask + matched pts", "true mask + matched pts",
-                          "true mask + true pts"};
+                          "true mask + true pts", "seg mask + true pts"};
   std::map<std::pair<int, int>, Errs> errs; // (input, model)
   std::vector<double> vis_w, vis_h;         // visible surface's 3D extent vs truth (%)
   std::vector<double> dl, dr, dt, db;       // silhouette edge offsets seg - truth (px, outward +)
@@ -145,11 +145,11 @@ int main(int argc, char **argv)
         dt.push_back(tb.y - sb.y);
         db.push_back(sb.br().y - tb.br().y);
         MetricsParams mpar;
-        for (int in = 0; in < 3; ++in)
+        for (int in = 0; in < 4; ++in)
           for (int mi = 0; mi < 5; ++mi) {
             mpar.extent_depth = kModels[mi];
-            const Silhouette &sil = in == 0 ? seg : truth_sil;
-            const std::vector<Point3> &pts = in == 2 ? tpts : dres.points;
+            const Silhouette &sil = in == 0 || in == 3 ? seg : truth_sil;
+            const std::vector<Point3> &pts = in >= 2 ? tpts : dres.points;
             const TreeMetrics m = compute_tree_metrics(sil, pts, g, mpar);
             errs[{in, mi}].h.push_back(100 * (m.height_m - t.canopy_height_m) / t.canopy_height_m);
             errs[{in, mi}].w.push_back(100 * (m.width_m - t.canopy_width_m) / t.canopy_width_m);

@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -156,6 +157,10 @@ struct Converter {
   // interpolated in between; off when `sided` is false.
   bool sided = false;
   double t0x = 0, t1x = 1, z0x = 0, z1x = 0, t0y = 0, t1y = 1, z0y = 0, z1y = 0;
+  // How far (mm) the canopy reaches beyond the limb point of each edge (MetricsParams::
+  // round_limbs): left, right, top, bottom; added to the extents only (a limb is not a band's
+  // edge).
+  double beyond[4] = {0, 0, 0, 0};
   double x(double t) const
   {
     if (sided)
@@ -234,10 +239,14 @@ bool robust_line_fit(const std::vector<double> &x, const std::vector<double> &z,
 // `clipped`: the edge is the image border, not a limb (the canopy goes on beyond it), so there is
 // nothing to extrapolate to: the median of those points converts the border's ray, a depth at
 // which that ray is inside the canopy, so the extent stays a lower bound.
+// `rho` (mm): the surface's radius of curvature at the limb (MetricsParams::round_limbs), from the
+// same points: z = b0 + b1 sqrt(d) with d = inset * z / f mm inside the silhouette's boundary
+// (`inset`: px along this edge's axis, see insets()), rho = b1^2 / 2; 0 when there was no fit.
 double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, bool vertical,
                   double t_edge, double t_other, double fraction, std::size_t min_points,
-                  double fallback, bool clipped)
+                  double fallback, bool clipped, const std::vector<double> &inset, double &rho)
 {
+  rho = 0;
   const double fy = g.fy > 0 ? g.fy : g.fx;
   std::vector<double> dist(pts.size()); // from the edge, in units of the extent
   for (std::size_t i = 0; i < pts.size(); ++i) {
@@ -254,31 +263,82 @@ double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, 
     if (z.size() < min_points)
       continue;
     double a0 = 0, a1 = 0;
-    if (clipped || !robust_line_fit(r, z, a0, a1) || !(a1 <= 0))
+    if (clipped || !robust_line_fit(r, z, a0, a1) || !(a1 <= 0) || !(a0 > 0))
       return median(z);
+    {
+      std::vector<double> sq, zz;
+      const double fpx = vertical ? fy : g.fx;
+      for (std::size_t i = 0; i < pts.size(); ++i)
+        if (dist[i] <= f && inset[i] >= 0) {
+          sq.push_back(std::sqrt(inset[i] * pts[i].z_mm / fpx));
+          zz.push_back(pts[i].z_mm);
+        }
+      double b0 = 0, b1 = 0;
+      if (robust_line_fit(sq, zz, b0, b1) && b1 < 0)
+        rho = 0.5 * b1 * b1;
+    }
     return a0;
   }
   return fallback;
 }
 
+// Each point's distance (px) inside the silhouette's boundary along an axis: from its row's left
+// and right ends, its column's top and bottom ends (-1 when off the silhouette's rows/columns).
+std::array<std::vector<double>, 4> insets(const std::vector<CanopyPoint> &pts, const cv::Mat &mask)
+{
+  const RowExtents rows = row_extents(mask);
+  const cv::Mat mt = mask.t();
+  const RowExtents cols = row_extents(mt);
+  std::array<std::vector<double>, 4> in;
+  for (auto &v : in)
+    v.assign(pts.size(), -1.0);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const int r = int(std::lround(pts[i].v)), c = int(std::lround(pts[i].u));
+    if (r >= rows.bbox.y && r < rows.bbox.br().y && rows.xl(r) >= 0) {
+      in[0][i] = pts[i].u - (rows.xl(r) - 0.5);
+      in[1][i] = rows.xr(r) + 0.5 - pts[i].u;
+    }
+    if (c >= cols.bbox.y && c < cols.bbox.br().y && cols.xl(c) >= 0) {
+      in[2][i] = pts[i].v - (cols.xl(c) - 0.5);
+      in[3][i] = cols.xr(c) + 0.5 - pts[i].v;
+    }
+  }
+  return in;
+}
+
 Converter tangent_points(const std::vector<CanopyPoint> &pts, const Slopes &s,
                          const StereoGeometry &g, double fraction, std::size_t min_points,
-                         double fallback, const Clipped &clip)
+                         double fallback, const Clipped &clip, bool round_limbs,
+                         const cv::Mat &mask)
 {
+  const std::array<std::vector<double>, 4> in = insets(pts, mask);
   Converter c;
   c.sided = true;
   c.t0x = s.left;
   c.t1x = s.right;
   c.t0y = s.top;
   c.t1y = s.bottom;
-  c.z0x = side_depth(pts, g, false, s.left, s.right, fraction, min_points, fallback, clip.left);
-  c.z1x = side_depth(pts, g, false, s.right, s.left, fraction, min_points, fallback, clip.right);
-  c.z0y = side_depth(pts, g, true, s.top, s.bottom, fraction, min_points, fallback, clip.top);
+  double rho[4];
+  c.z0x = side_depth(pts, g, false, s.left, s.right, fraction, min_points, fallback, clip.left,
+                     in[0], rho[0]);
+  c.z1x = side_depth(pts, g, false, s.right, s.left, fraction, min_points, fallback, clip.right,
+                     in[1], rho[1]);
+  c.z0y = side_depth(pts, g, true, s.top, s.bottom, fraction, min_points, fallback, clip.top,
+                     in[2], rho[2]);
   c.z1y = side_depth(pts, g, true, s.bottom, s.top, fraction, min_points, fallback,
-                     clip.bottom);
+                     clip.bottom, in[3], rho[3]);
   const double dt = s.right - s.left;
   c.z_ext = dt > 0 ? (c.x(s.right) - c.x(s.left)) / dt : fallback;
   c.zc = c.z_ext;
+  if (round_limbs) {
+    // The extreme of a rounded limb is rho * (1 - cos(ray angle)) beyond the limb point; rho
+    // no more than half the extent (a fit that implies more is not a rounded limb).
+    const double half_w = 0.5 * std::max(0.0, c.x(s.right) - c.x(s.left));
+    const double half_h = 0.5 * std::max(0.0, c.y(s.bottom) - c.y(s.top));
+    const double t[4] = {s.left, s.right, s.top, s.bottom};
+    for (int i = 0; i < 4; ++i)
+      c.beyond[i] = std::min(rho[i], i < 2 ? half_w : half_h) * (1.0 - 1.0 / std::hypot(1.0, t[i]));
+  }
   return c;
 }
 
@@ -300,7 +360,8 @@ double edge_depth(const std::vector<CanopyPoint> &pts, const RowExtents &e, doub
 
 Converter choose_converter(const MetricsParams &p, const Slopes &s, const Summary &depth,
                            std::vector<double> z, const std::vector<CanopyPoint> &pts,
-                           const RowExtents &e, const StereoGeometry &g, const Clipped &clip)
+                           const RowExtents &e, const StereoGeometry &g, const Clipped &clip,
+                           const cv::Mat &mask)
 {
   Converter c;
   const double mid = depth.median + 0.5 * (depth.p95 - depth.p05);
@@ -308,7 +369,7 @@ Converter choose_converter(const MetricsParams &p, const Slopes &s, const Summar
   case ExtentDepth::kRoundCanopy: return round_canopy(s, percentile(z, p.near_percentile));
   case ExtentDepth::kTangentPoints:
     return tangent_points(pts, s, g, p.tangent_fraction, std::size_t(p.tangent_min_points), mid,
-                          clip);
+                          clip, p.round_limbs, mask);
   case ExtentDepth::kEdgePoints: c.z_ext = edge_depth(pts, e, p.edge_fraction, mid); break;
   case ExtentDepth::kMidDepth: c.z_ext = mid; break;
   case ExtentDepth::kFrontFace: c.z_ext = depth.median; break;
@@ -410,7 +471,7 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
   m.clipped.left = e.bbox.x == 0;
   m.clipped.bottom = e.bbox.br().y == vs.height;
   m.clipped.right = e.bbox.br().x == vs.width;
-  const Converter c = choose_converter(p, s, depth, z, pts, e, g, m.clipped);
+  const Converter c = choose_converter(p, s, depth, z, pts, e, g, m.clipped, left.mask);
 
   m.tree_present = true;
   m.points = pts.size();
@@ -424,8 +485,8 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
     m.thickness_m = (depth.p95 - depth.p05) * kMmToM;
   }
   m.extent_depth_m = c.z_ext * kMmToM;
-  m.width_m = (c.x(s.right) - c.x(s.left)) * kMmToM;
-  m.height_m = (c.y(s.bottom) - c.y(s.top)) * kMmToM;
+  m.width_m = (c.x(s.right) - c.x(s.left) + c.beyond[0] + c.beyond[1]) * kMmToM;
+  m.height_m = (c.y(s.bottom) - c.y(s.top) + c.beyond[2] + c.beyond[3]) * kMmToM;
 
   // Area and perimeter at the equivalent depth, so that area ~ width * height for a box.
   const double area_px = left.area_px > 0 ? left.area_px : double(cv::countNonZero(left.mask));

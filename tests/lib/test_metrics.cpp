@@ -166,6 +166,34 @@ TEST(Metrics, SphereExtentOptionsCompared)
   }
 }
 
+// The top edge's ray climbs about 20 degrees to a sphere of 0.3 m radius above the optical axis:
+// it touches the sphere at its limb, 0.3 m * (1 - cos 20 deg) = 18 mm below the top, so the
+// limb points alone read 3 % low. The rounding measured from the edge points gives back more than
+// half of it (rho reads 180-260 mm for the true 300: the rows or columns away from the extreme
+// cut smaller circles, see MetricsParams::round_limbs).
+TEST(Metrics, RoundLimbsReachTheExtremeBeyondTheLimb)
+{
+  const StereoGeometry g = camera();
+  const double R = 300;
+  const Scene s = cast(g, ellipsoid({0, -400, 2000}, R, R), 3);
+  ASSERT_TRUE(s.sil.present);
+  MetricsParams p;
+  ASSERT_TRUE(p.round_limbs);
+  ASSERT_EQ(p.extent_depth, ExtentDepth::kTangentPoints);
+  const TreeMetrics m = compute_tree_metrics(s.sil, s.points, g, p);
+  p.round_limbs = false;
+  const TreeMetrics limb = compute_tree_metrics(s.sil, s.points, g, p);
+  ASSERT_TRUE(m.tree_present && limb.tree_present);
+  std::printf("sphere 0.6 m: height %.4f m (limb points only %.4f), width %.4f (%.4f)\n",
+              m.height_m, limb.height_m, m.width_m, limb.width_m);
+  // Without: short by about the 18 mm at the top (2 mm more at the sides and the bottom).
+  EXPECT_LT(limb.height_m, 0.6 - 0.012);
+  EXPECT_LT(rel(m.height_m, 0.6), 0.5 * rel(limb.height_m, 0.6));
+  EXPECT_LT(m.height_m, 0.6); // partial: never past the extreme on a sphere
+  EXPECT_LT(rel(m.width_m, 0.6), 0.5 * rel(limb.width_m, 0.6));
+  EXPECT_LT(m.width_m, 0.6);
+}
+
 // The paper's depth noise (1.36 cm sd at ~2 m) and 300 points, like a frame of SIFT matches.
 TEST(Metrics, SphereWithPaperDepthNoise)
 {
@@ -206,8 +234,9 @@ TEST(Metrics, EllipsoidOfRevolutionWidthExactHeightClose)
 // 0.9 m high, 0.7 m wide and 0.6 m deep at 2 m, the shape of treetestsrc's trees. It is no solid
 // of revolution (its depth is not its width) and its extreme clusters lie at random depths, so
 // the round-canopy model reads up to 5 % off; tangent-points converts each edge at the depth
-// where its ray touches the canopy and reads within 2.5 % (measured -1.2 to -2.0 %: the limb
-// fit over the outer 10 % of the extent still lands a little in front of the limb).
+// where its ray touches the canopy and reads within 2.5 % (measured -0.3 to -1.6 % with
+// round_limbs, -1.2 to -2.0 % without: the limb fit over the outer 10 % of the extent still
+// lands a little in front of the limb, and the limb is not the extreme).
 TEST(Metrics, ClusterCanopyTangentPointsBeatRoundCanopy)
 {
   const StereoGeometry g = camera();
