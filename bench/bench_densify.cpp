@@ -16,7 +16,7 @@
 //
 //   bench-densify [--sizes 1296x972] [--distances 1.8,2.0,2.2] [--seeds 1,2,3] [--lights 1.0]
 //                 [--step 0] [--target 4000] [--half-window 3] [--min-zncc 0.8]
-//                 [--margin 0.05] [--lr 1] [--tangent-fraction 0.1] [--tangent-min 15]
+//                 [--margin 0.05] [--lr 1] [--tangent-fraction 0.1] [--tangent-min 15] [--round-limbs 1]
 //                 [--morph 5] [--reconstruct 1] [--area-weighted 1] [--outlier-k 3.5]
 #include "scene_pairs.hpp"
 #include "sweep.hpp"
@@ -87,6 +87,8 @@ int main(int argc, char **argv)
       mpar.tangent_fraction = std::stod(v);
     else if (a == "--tangent-min")
       mpar.tangent_min_points = std::stoi(v);
+    else if (a == "--round-limbs")
+      mpar.round_limbs = std::stoi(v) != 0;
     else if (a == "--area-weighted")
       mpar.area_weighted = std::stoi(v) != 0;
     else if (a == "--outlier-k")
