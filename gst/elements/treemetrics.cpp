@@ -12,8 +12,9 @@
  * Height and width convert the silhouette's angular extent into metres by
  * #treemetrics:extent-method (default `tangent-points`: each silhouette edge at the depth of
  * the points where its ray touches the canopy; `round-canopy`: exact for a canopy that is a
- * solid of revolution about a vertical axis; see lib/include/treestereo/metrics.hpp). Only
- * points that project onto the silhouette count.
+ * solid of revolution about a vertical axis; see lib/include/treestereo/metrics.hpp), with
+ * #treemetrics:round-limbs (default true) adding how far a rounded canopy reaches beyond each
+ * limb point. Only points that project onto the silhouette count.
  *
  * When no canopy is found (the vegetation meta says none, no valid point falls on it) the
  * message carries `tree-present=false` and no other figure, and the meta's figures are all 0:
@@ -121,6 +122,7 @@ enum {
   PROP_BANDS,
   PROP_SMOOTHING,
   PROP_EXTENT_METHOD,
+  PROP_ROUND_LIMBS,
   PROP_POST_MESSAGES,
 };
 
@@ -130,6 +132,7 @@ struct Settings {
   int bands = DEFAULT_BANDS;
   double smoothing = DEFAULT_SMOOTHING;
   ExtentDepth extent = MetricsParams{}.extent_depth;
+  bool round_limbs = MetricsParams{}.round_limbs;
   bool post_messages = DEFAULT_POST_MESSAGES;
 };
 
@@ -233,6 +236,7 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
       MetricsParams p;
       p.n_bands = s.bands;
       p.extent_depth = s.extent;
+      p.round_limbs = s.round_limbs;
       const treestereo::gst::MappedSilhouette sil(&veg->views[LEFT]);
       m = compute_tree_metrics(sil.get(), points_of(pm), treestereo::gst::geometry_from_meta(gm),
                                p);
@@ -285,6 +289,7 @@ static void gst_tree_metrics_set_property(GObject *object, guint prop_id, const 
   case PROP_BANDS: s.bands = g_value_get_int(value); break;
   case PROP_SMOOTHING: s.smoothing = g_value_get_double(value); break;
   case PROP_EXTENT_METHOD: s.extent = ExtentDepth(g_value_get_enum(value)); break;
+  case PROP_ROUND_LIMBS: s.round_limbs = g_value_get_boolean(value); break;
   case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
@@ -300,6 +305,7 @@ static void gst_tree_metrics_get_property(GObject *object, guint prop_id, GValue
   case PROP_BANDS: g_value_set_int(value, s.bands); break;
   case PROP_SMOOTHING: g_value_set_double(value, s.smoothing); break;
   case PROP_EXTENT_METHOD: g_value_set_enum(value, int(s.extent)); break;
+  case PROP_ROUND_LIMBS: g_value_set_boolean(value, s.round_limbs); break;
   case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
@@ -347,6 +353,13 @@ static void gst_tree_metrics_class_init(GstTreeMetricsClass *klass)
                         "bands, area, perimeter)",
                         GST_TYPE_TREE_METRICS_EXTENT, int(MetricsParams{}.extent_depth),
                         RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_ROUND_LIMBS,
+      g_param_spec_boolean("round-limbs", "Round limbs",
+                           "tangent-points: add how far the canopy reaches beyond each limb point "
+                           "(the limb is not the extreme unless the ray is straight ahead), from "
+                           "the curvature the edge points show; false = the limb points' extent",
+                           MetricsParams{}.round_limbs, RW_PLAYING));
   g_object_class_install_property(
       gobject_class, PROP_POST_MESSAGES,
       g_param_spec_boolean("post-messages", "Post messages",
