@@ -368,6 +368,30 @@ Scene stepped()
 
 } // namespace
 
+/* A 0.6 m sphere whose top ray climbs about 20 degrees: its limb is 18 mm below its top.
+ * round-limbs (default) gives back more than half of what the limb points alone miss
+ * (lib's Metrics.RoundLimbsReachTheExtremeBeyondTheLimb has the geometry). */
+GST_START_TEST(test_round_limbs_property)
+{
+  const Scene s = cast(sphere(cv::Vec3d(0, -400, 2000), 300), 3);
+  double h[2], w[2];
+  for (int on = 0; on < 2; ++on) {
+    Rig r = rig_new(on ? "" : "round-limbs=false");
+    GstBuffer *out = gst_harness_push_and_pull(r.h, frame(&s, &s, 0));
+    const GstTreeStereoMetrics &m = gst_buffer_get_tree_stereo_metrics_meta(out)->metrics;
+    fail_unless(m.tree_present);
+    h[on] = m.height_m;
+    w[on] = m.width_m;
+    gst_buffer_unref(out);
+    rig_free(r);
+  }
+  fail_unless(h[0] < 0.6 - 0.012, "limb points only: height %f", h[0]);
+  fail_unless(std::abs(h[1] - 0.6) < 0.5 * std::abs(h[0] - 0.6), "height %f (%f)", h[1], h[0]);
+  fail_unless(std::abs(w[1] - 0.6) < 0.5 * std::abs(w[0] - 0.6), "width %f (%f)", w[1], w[0]);
+  fail_unless(h[1] < 0.6 && w[1] < 0.6);
+}
+GST_END_TEST;
+
 GST_START_TEST(test_band_profile_of_a_stepped_canopy)
 {
   const Scene s = stepped();
@@ -571,6 +595,7 @@ static Suite *treemetrics_suite(void)
   TCase *tc = tcase_create("general");
   suite_add_tcase(s, tc);
   tcase_add_test(tc, test_sphere_every_field_against_truth);
+  tcase_add_test(tc, test_round_limbs_property);
   tcase_add_test(tc, test_band_profile_of_a_stepped_canopy);
   tcase_add_test(tc, test_smoothing_converges_and_resets_without_a_tree);
   tcase_add_test(tc, test_no_tree_cases);
