@@ -7,18 +7,19 @@
 # Optional: FRAMERATE (7/1, the rate the frames were taken at: it sets the timestamps that
 # stereorectify pairs by), EXT (jpg; png works too), SINK (fakesink: nothing is shown;
 # e.g. "treeoverlay views=left ! videoconvert ! autovideosink" to watch).
-# multifilesrc numbers from index 0 and stops at the first missing file.
+# imagesequencesrc numbers from index 0 and stops at the first missing file; unlike multifilesrc
+# it knows the sequence's duration and can seek (an application can scrub through a replay).
 set -euo pipefail
 dir=${1:?usage: replay-sequence.sh <dir> [calibration]}
 calibration=${2:-$dir/calibration.yml}
 rate=${FRAMERATE:-7/1}
 ext=${EXT:-jpg}
-case "$ext" in jpg | jpeg) dec=jpegdec; mime=image/jpeg ;; png) dec=pngdec; mime=image/png ;;
+case "$ext" in jpg | jpeg) dec=jpegdec ;; png) dec=pngdec ;;
   *) echo "replay-sequence.sh: EXT must be jpg or png" >&2; exit 2 ;; esac
 sink=${SINK:-fakesink}
 
 view() {  # $1 left|right
-  echo "multifilesrc location=\"$dir/$1_%04d.$ext\" caps=$mime,framerate=$rate ! $dec !" \
+  echo "imagesequencesrc location=\"$dir/$1_%04d.$ext\" framerate=$rate ! $dec !" \
        "videoconvert ! video/x-raw,format=RGB ! r.$1"
 }
 # shellcheck disable=SC2046
