@@ -119,7 +119,7 @@ std::unique_ptr<Matcher> make_matcher(const MatcherParams &params);
 // Sub-pixel disparity at full resolution: ZNCC of a (2*half_window+1)^2 patch around the left
 // keypoint (rounded to the pixel) against patches of the right view on the same row, at integer
 // offsets within +-search px of the matcher's estimate; a parabola through the best score and its
-// two neighbours gives a sub-pixel start, and up to three Gauss-Newton steps on the linearly
+// two neighbours gives a sub-pixel start, and up to six Gauss-Newton steps on the linearly
 // interpolated right patch remove the parabola's pull towards whole pixels (on a smooth texture
 // shifted by 23.37 px: every error below 0.1 px, median 0.013 px; the parabola alone: up to 0.34). A match is rejected when the best score is below
 // min_zncc, when the best offset is outside +-search (the estimate was off) or when the patch
