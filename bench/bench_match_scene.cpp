@@ -96,9 +96,6 @@ std::vector<Perturbation> perturbations()
   };
 }
 
-// siftmatch's detection threshold (lib's default is 0.04).
-constexpr double kContrastThreshold = 0.035;
-
 // The "two-layer test on" rows: siftmatch's defaults for the refinement's filters.
 void filters_on(MatchParams &p)
 {
@@ -155,8 +152,7 @@ void apply_set(MatchParams &p, const std::string &set)
 MatchParams element_params(const StereoGeometry &g, int width, MatchMethod method, bool filters,
                            const std::string &set)
 {
-  MatchParams p; // lib defaults = siftmatch's defaults, but for the contrast threshold
-  p.detect.contrast_threshold = kContrastThreshold;
+  MatchParams p; // lib defaults = siftmatch's defaults for detection and matching
   p.detect.scale = 1.0;
   while (width * p.detect.scale > 648.0)
     p.detect.scale *= 0.5;
@@ -390,8 +386,8 @@ void errors(const std::vector<Pair> &pairs, const Options &o)
 }
 
 // Middlebury Jadeplant (quarter size) as lib's test and siftmatch's element test run it: scale 1,
-// 1 px band, 0..ndisp, mutual, refinement, siftmatch's contrast threshold; without and with the
-// two-layer test (and siftmatch's other refinement filters).
+// 1 px band, 0..ndisp, mutual, refinement; without and with the two-layer test (and siftmatch's
+// other refinement filters).
 void jadeplant(const Options &o)
 {
   const std::string dir = o.data + "/middlebury2014-quarter/Jadeplant";
@@ -400,8 +396,7 @@ void jadeplant(const Options &o)
     return;
   }
   const MiddleburyScene s = load_middlebury_scene(dir);
-  std::printf("\n## Middlebury Jadeplant (quarter size, scale 1, contrast threshold 0.035, 1 px band, "
-              "0..ndisp, mutual, "
+  std::printf("\n## Middlebury Jadeplant (quarter size, scale 1, 1 px band, 0..ndisp, mutual, "
               "refinement). Wrong by kind: edge = the matched disparity is the truth of a pixel "
               "within 3 px (nearer: the match is nearer than the keypoint's own truth); other: the "
               "rest.\n\n| method | two-layer test | keypoints L/R | matches | evaluated "
@@ -414,7 +409,6 @@ void jadeplant(const Options &o)
       p.matcher.constraints.epipolar_tolerance = 1.0;
       p.matcher.constraints.min_disparity = 0;
       p.matcher.constraints.max_disparity = s.calib.ndisp;
-      p.detect.contrast_threshold = kContrastThreshold;
       filters_off(p);
       if (filters) {
         filters_on(p);

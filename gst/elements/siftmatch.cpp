@@ -25,6 +25,13 @@
  * distance std 0.19 cm both, thickness -6.85% against -6.73%; docs/elements/siftmatch.md). Set
  * layer-tolerance=-1 for the most matches.
  *
+ * Further tests run with it (all on by default): a 0.9 correlation peak (#siftmatch:min-zncc), a
+ * peak that stands out along the row (#siftmatch:min-zncc-drop, against horizontal edges), the
+ * 3x3 centre's own tolerance (#siftmatch:layer-centre-tolerance) and a minimum correlation of each
+ * part of the window at the refined disparity (#siftmatch:layer-min-zncc,
+ * #siftmatch:layer-centre-min-zncc). On 24 treetestsrc pairs at 1.8/2.2 m they take the correct
+ * rate from 99.2-99.7% to 99.55-99.91% for 5-6% fewer matches, Jadeplant from 96.7% to 97.9%.
+ *
  * A buffer without the geometry meta, or a stream that is not side by side, is an error.
  *
  * ## Example launch line
@@ -65,7 +72,7 @@ using namespace treestereo;
 #define DEFAULT_MAX_DEPTH 10000.0
 #define DEFAULT_MUTUAL TRUE
 #define DEFAULT_NFEATURES 0
-#define DEFAULT_CONTRAST_THRESHOLD 0.035 /* more keypoints to make up for the stricter tests */
+#define DEFAULT_CONTRAST_THRESHOLD 0.04
 #define DEFAULT_SCALE 0.0
 #define DEFAULT_USE_MASK TRUE
 #define DEFAULT_REFINE TRUE

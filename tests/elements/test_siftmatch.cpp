@@ -391,7 +391,7 @@ GST_START_TEST(test_property_ranges)
       {"max-disparity", -1.0, 100000.0, -1.0},
       {"min-depth", 1.0, 1e6, 500.0},
       {"max-depth", 1.0, 1e7, 10000.0},
-      {"contrast-threshold", 0.001, 1.0, 0.035},
+      {"contrast-threshold", 0.001, 1.0, 0.04},
       {"scale", 0.0, 1.0, 0.0},
       {"min-zncc", -1.0, 1.0, 0.9},
       {"min-zncc-drop", 0.0, 2.0, 0.05},
