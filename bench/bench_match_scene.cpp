@@ -2,7 +2,8 @@
 // does, matched with siftmatch's settings (scale 0.5 at 1296x972, 2 px band, disparity range of
 // 0.5..10 m, mutual, refinement), scored against the per-pixel true disparity (correct: |d - d_true|
 // <= 1 px at the left keypoint's pixel). Rows: euclidean / cosine-norm, stereo constraints off /
-// on (with the two-layer test off = before, and on = siftmatch's defaults), and the paper's
+// on (with the two-layer test off = before: min-zncc 0.8 and no other filter, and on = siftmatch's
+// refinement filters), and the paper's
 // perturbations of the right view (light -30 % / +30 %, rotation 90 degrees and scale 50 %, the
 // last two without the epipolar constraint). Also: a breakdown of the wrong matches by kind,
 // Middlebury Jadeplant before/after, and timing rows.
@@ -10,8 +11,9 @@
 //   bench-match-scene [--seeds 1,2,3] [--distances 1.8,2.2] [--size 1296x972] [--runs 3]
 //                     [--only table,errors,row,jadeplant,timing] [--set key=value,...] [--data DIR]
 //
-// --set changes the settings of the "two-layer test on" rows (keys: min-zncc, layer-tolerance, layer-half-window,
-// layer-search, half-window, search, scale, nfeatures, contrast-threshold, ratio,
+// --set changes the settings of the "two-layer test on" rows (keys: min-zncc, min-zncc-drop,
+// layer-tolerance, layer-half-window, layer-search, layer-centre-tolerance, layer-min-zncc,
+// layer-centre-min-zncc, half-window, search, scale, nfeatures, contrast-threshold, ratio,
 // epipolar-tolerance, mutual), to explore other values.
 #include "scene_pairs.hpp"
 #include "sweep.hpp"
@@ -94,14 +96,26 @@ std::vector<Perturbation> perturbations()
   };
 }
 
-// The two-layer test's tolerance of the "on" rows (siftmatch layer-tolerance=0.5).
-constexpr double kLayerTolerance = 0.5;
+// The "two-layer test on" rows: siftmatch's defaults for the refinement's filters.
+void filters_on(MatchParams &p)
+{
+  p.refine_params.min_zncc = 0.9;
+  p.refine_params.min_zncc_drop = 0.05;
+  p.refine_params.layer_tolerance = 0.5;
+  p.refine_params.layer_centre_tolerance = 0.7;
+  p.refine_params.layer_min_zncc = 0.7;
+  p.refine_params.layer_centre_min_zncc = 0.6;
+}
+constexpr const char *kFiltersOn = "min-zncc=0.9, min-zncc-drop=0.05, layer-tolerance=0.5, "
+                                   "layer-centre-tolerance=0.7, layer-min-zncc=0.7, "
+                                   "layer-centre-min-zncc=0.6";
 
 // The two-layer test switched off: the matcher as it was before it.
 void filters_off(MatchParams &p)
 {
   p.refine_params.layer_tolerance = -1;
   p.refine_params.min_zncc = 0.8;
+  p.refine_params.min_zncc_drop = 0;
 }
 
 void apply_set(MatchParams &p, const std::string &set)
@@ -120,6 +134,10 @@ void apply_set(MatchParams &p, const std::string &set)
     else if (k == "layer-tolerance") p.refine_params.layer_tolerance = v;
     else if (k == "layer-search") p.refine_params.layer_search = int(v);
     else if (k == "layer-half-window") p.refine_params.layer_half_window = int(v);
+    else if (k == "layer-centre-tolerance") p.refine_params.layer_centre_tolerance = v;
+    else if (k == "layer-min-zncc") p.refine_params.layer_min_zncc = v;
+    else if (k == "layer-centre-min-zncc") p.refine_params.layer_centre_min_zncc = v;
+    else if (k == "min-zncc-drop") p.refine_params.min_zncc_drop = v;
     else if (k == "scale") p.detect.scale = v;
     else if (k == "nfeatures") p.detect.nfeatures = int(v);
     else if (k == "contrast-threshold") p.detect.contrast_threshold = v;
@@ -134,7 +152,7 @@ void apply_set(MatchParams &p, const std::string &set)
 MatchParams element_params(const StereoGeometry &g, int width, MatchMethod method, bool filters,
                            const std::string &set)
 {
-  MatchParams p; // lib defaults = siftmatch's defaults
+  MatchParams p; // lib defaults = siftmatch's defaults for detection and matching
   p.detect.scale = 1.0;
   while (width * p.detect.scale > 648.0)
     p.detect.scale *= 0.5;
@@ -145,7 +163,7 @@ MatchParams element_params(const StereoGeometry &g, int width, MatchMethod metho
   p.matcher.constraints.max_disparity = range.max;
   filters_off(p);
   if (filters) {
-    p.refine_params.layer_tolerance = kLayerTolerance;
+    filters_on(p);
     apply_set(p, set);
   }
   return p;
@@ -232,8 +250,8 @@ void table(const std::vector<Pair> &pairs, const Options &o)
   std::printf("m), frame 0, whole views (no mask). Keypoints and matches: mean per pair; "
               "min: the pair with the fewest. ms: median of %d run(s) per pair of the whole "
               "step (detection of both views, matching, refinement, two-layer test). Two-layer "
-              "test on: layer-tolerance=%g%s%s.\n\n",
-              o.runs, kLayerTolerance, o.set.empty() ? "" : ", then --set ", o.set.c_str());
+              "test on: %s%s%s.\n\n",
+              o.runs, kFiltersOn, o.set.empty() ? "" : ", then --set ", o.set.c_str());
   std::printf("| condition | method | constraints | two-layer test | keypoints L | keypoints R "
               "| matches | min matches | evaluated | wrong | correct %% | ms |\n"
               "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -278,7 +296,7 @@ void one_row(const std::vector<Pair> &pairs, const Options &o)
   Row r = run_row(pairs, perturbations()[0], p, o.runs);
   const double n = double(pairs.size()), cpu = (cpu_ms() - c0) / n / o.runs;
   std::printf("| %s | %.0f/%.0f | %.0f | %zu | %zu | %zu | %.2f | %.1f | %.0f |\n",
-              o.set.empty() ? "(layer-tolerance=0.5)" : o.set.c_str(), double(r.kp_l) / n,
+              o.set.empty() ? "(siftmatch's defaults)" : o.set.c_str(), double(r.kp_l) / n,
               double(r.kp_r) / n, double(r.matches) / n, r.min_matches, r.evaluated, r.wrong,
               r.evaluated ? 100.0 * double(r.evaluated - r.wrong) / double(r.evaluated) : 0.0,
               median(r.ms), cpu);
@@ -368,7 +386,8 @@ void errors(const std::vector<Pair> &pairs, const Options &o)
 }
 
 // Middlebury Jadeplant (quarter size) as lib's test and siftmatch's element test run it: scale 1,
-// 1 px band, 0..ndisp, mutual, refinement; without and with the two-layer test.
+// 1 px band, 0..ndisp, mutual, refinement; without and with the two-layer test (and siftmatch's
+// other refinement filters).
 void jadeplant(const Options &o)
 {
   const std::string dir = o.data + "/middlebury2014-quarter/Jadeplant";
@@ -392,7 +411,7 @@ void jadeplant(const Options &o)
       p.matcher.constraints.max_disparity = s.calib.ndisp;
       filters_off(p);
       if (filters) {
-        p.refine_params.layer_tolerance = kLayerTolerance;
+        filters_on(p);
         apply_set(p, o.set);
       }
       const StereoMatchResult r = match_stereo(s.left, s.right, cv::Mat(), cv::Mat(), p);
@@ -438,9 +457,9 @@ void timing(const Options &o)
     double contrast;
   };
   const Setting settings[] = {
-      {{1296, 972}, 0.5, 0, 0.02},  {{1296, 972}, 0.5, 0, 0.04},  {{1296, 972}, 0.4, 0, 0.02},
-      {{1296, 972}, 0.5, 1500, 0.02}, {{1296, 972}, 0.25, 0, 0.02}, {{2592, 1944}, 0.25, 0, 0.02},
-      {{2592, 1944}, 0.25, 0, 0.04},
+      {{1296, 972}, 0.5, 0, 0.02},  {{1296, 972}, 0.5, 0, 0.04},  {{1296, 972}, 0.5, 0, 0.035},
+      {{1296, 972}, 0.4, 0, 0.02},  {{1296, 972}, 0.5, 1500, 0.02}, {{1296, 972}, 0.25, 0, 0.02},
+      {{2592, 1944}, 0.25, 0, 0.02}, {{2592, 1944}, 0.25, 0, 0.04}, {{2592, 1944}, 0.25, 0, 0.035},
   };
   cv::Size rendered;
   bench::ScenePair pair;

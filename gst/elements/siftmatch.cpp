@@ -25,6 +25,13 @@
  * distance std 0.19 cm both, thickness -6.85% against -6.73%; docs/elements/siftmatch.md). Set
  * layer-tolerance=-1 for the most matches.
  *
+ * Further tests run with it (all on by default): a 0.9 correlation peak (#siftmatch:min-zncc), a
+ * peak that stands out along the row (#siftmatch:min-zncc-drop, against horizontal edges), the
+ * 3x3 centre's own tolerance (#siftmatch:layer-centre-tolerance) and a minimum correlation of each
+ * part of the window at the refined disparity (#siftmatch:layer-min-zncc,
+ * #siftmatch:layer-centre-min-zncc). On 24 treetestsrc pairs at 1.8/2.2 m they take the correct
+ * rate from 99.2-99.7% to 99.55-99.91% for 5-6% fewer matches, Jadeplant from 96.7% to 97.9%.
+ *
  * A buffer without the geometry meta, or a stream that is not side by side, is an error.
  *
  * ## Example launch line
@@ -69,10 +76,14 @@ using namespace treestereo;
 #define DEFAULT_SCALE 0.0
 #define DEFAULT_USE_MASK TRUE
 #define DEFAULT_REFINE TRUE
-#define DEFAULT_MIN_ZNCC 0.8
+#define DEFAULT_MIN_ZNCC 0.9
+#define DEFAULT_MIN_ZNCC_DROP 0.05
 #define DEFAULT_LAYER_TOLERANCE 0.5 /* on: see the doc block and docs/elements/siftmatch.md */
 #define DEFAULT_LAYER_WINDOW 5
 #define DEFAULT_LAYER_SEARCH 3
+#define DEFAULT_LAYER_CENTRE_TOLERANCE 0.7
+#define DEFAULT_LAYER_MIN_ZNCC 0.7
+#define DEFAULT_LAYER_CENTRE_MIN_ZNCC 0.6
 #define DEFAULT_POST_MESSAGES TRUE
 /* scale=0 (automatic) detects on a copy at most this wide: SIFT upsamples it 2x internally, so
  * its base octave is then at most 1296 px wide whatever the camera's resolution. */
@@ -96,9 +107,13 @@ enum {
   PROP_USE_MASK,
   PROP_REFINE,
   PROP_MIN_ZNCC,
+  PROP_MIN_ZNCC_DROP,
   PROP_LAYER_TOLERANCE,
   PROP_LAYER_WINDOW,
   PROP_LAYER_SEARCH,
+  PROP_LAYER_CENTRE_TOLERANCE,
+  PROP_LAYER_MIN_ZNCC,
+  PROP_LAYER_CENTRE_MIN_ZNCC,
   PROP_POST_MESSAGES,
 };
 
@@ -120,9 +135,13 @@ struct Settings {
   bool use_mask = DEFAULT_USE_MASK;
   bool refine = DEFAULT_REFINE;
   double min_zncc = DEFAULT_MIN_ZNCC;
+  double min_zncc_drop = DEFAULT_MIN_ZNCC_DROP;
   double layer_tolerance = DEFAULT_LAYER_TOLERANCE;
   int layer_window = DEFAULT_LAYER_WINDOW;
   int layer_search = DEFAULT_LAYER_SEARCH;
+  double layer_centre_tolerance = DEFAULT_LAYER_CENTRE_TOLERANCE;
+  double layer_min_zncc = DEFAULT_LAYER_MIN_ZNCC;
+  double layer_centre_min_zncc = DEFAULT_LAYER_CENTRE_MIN_ZNCC;
   bool post_messages = DEFAULT_POST_MESSAGES;
   guint64 generation = 0; // bumped by every change that needs a new StereoMatcher
 };
@@ -254,9 +273,13 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   p.matcher.constraints.mutual = s.mutual;
   p.refine = s.refine;
   p.refine_params.min_zncc = s.min_zncc;
+  p.refine_params.min_zncc_drop = s.min_zncc_drop;
   p.refine_params.layer_tolerance = s.layer_tolerance;
   p.refine_params.layer_half_window = s.layer_window;
   p.refine_params.layer_search = s.layer_search;
+  p.refine_params.layer_centre_tolerance = s.layer_centre_tolerance;
+  p.refine_params.layer_min_zncc = s.layer_min_zncc;
+  p.refine_params.layer_centre_min_zncc = s.layer_centre_min_zncc;
   p.parallel_detect = true;
   st->matcher = std::make_unique<StereoMatcher>(p);
   st->key = key;
@@ -485,6 +508,18 @@ static void gst_sift_match_set_property(GObject *object, guint prop_id, const GV
   case PROP_MIN_ZNCC:
     s.min_zncc = g_value_get_double(value);
     break;
+  case PROP_MIN_ZNCC_DROP:
+    s.min_zncc_drop = g_value_get_double(value);
+    break;
+  case PROP_LAYER_CENTRE_TOLERANCE:
+    s.layer_centre_tolerance = g_value_get_double(value);
+    break;
+  case PROP_LAYER_MIN_ZNCC:
+    s.layer_min_zncc = g_value_get_double(value);
+    break;
+  case PROP_LAYER_CENTRE_MIN_ZNCC:
+    s.layer_centre_min_zncc = g_value_get_double(value);
+    break;
   case PROP_LAYER_TOLERANCE:
     s.layer_tolerance = g_value_get_double(value);
     break;
@@ -555,6 +590,18 @@ static void gst_sift_match_get_property(GObject *object, guint prop_id, GValue *
     break;
   case PROP_MIN_ZNCC:
     g_value_set_double(value, s.min_zncc);
+    break;
+  case PROP_MIN_ZNCC_DROP:
+    g_value_set_double(value, s.min_zncc_drop);
+    break;
+  case PROP_LAYER_CENTRE_TOLERANCE:
+    g_value_set_double(value, s.layer_centre_tolerance);
+    break;
+  case PROP_LAYER_MIN_ZNCC:
+    g_value_set_double(value, s.layer_min_zncc);
+    break;
+  case PROP_LAYER_CENTRE_MIN_ZNCC:
+    g_value_set_double(value, s.layer_centre_min_zncc);
     break;
   case PROP_LAYER_TOLERANCE:
     g_value_set_double(value, s.layer_tolerance);
@@ -668,6 +715,11 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
   install_double(gobject_class, PROP_MIN_ZNCC, "min-zncc", "Minimum ZNCC",
                  "Refinement: drop a match whose 7x7 correlation peak is below this", -1.0, 1.0,
                  DEFAULT_MIN_ZNCC);
+  install_double(gobject_class, PROP_MIN_ZNCC_DROP, "min-zncc-drop", "Minimum ZNCC drop",
+                 "Refinement: drop a match whose 7x7 correlation stays within this of its peak "
+                 "over the whole search (+-3 px): a horizontal edge or a patch without horizontal "
+                 "structure correlates about as well at every position; 0 = off",
+                 0.0, 2.0, DEFAULT_MIN_ZNCC_DROP);
   install_double(gobject_class, PROP_LAYER_TOLERANCE, "layer-tolerance", "Layer tolerance",
                  "Two-layer test after refinement: the four quadrants of the layer window and "
                  "its 3x3 centre, each correlated on its own, must all peak within this many px "
@@ -686,6 +738,21 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
                        "Two-layer test: how far (px) each part is searched around the refined "
                        "disparity",
                        1, 32, DEFAULT_LAYER_SEARCH, PROP_FLAGS));
+  install_double(gobject_class, PROP_LAYER_CENTRE_TOLERANCE, "layer-centre-tolerance",
+                 "Layer centre tolerance",
+                 "Two-layer test: the tolerance (px) of the 3x3 centre's peak, whose 9 pixels "
+                 "place it less precisely than a quadrant's; negative = layer-tolerance",
+                 -1.0, 100.0, DEFAULT_LAYER_CENTRE_TOLERANCE);
+  install_double(gobject_class, PROP_LAYER_MIN_ZNCC, "layer-min-zncc", "Layer minimum ZNCC",
+                 "Two-layer test: each quadrant's correlation at the refined disparity must reach "
+                 "this (a part of the window on another depth layer, or hidden in the right "
+                 "view, correlates poorly there); -1 = no minimum",
+                 -1.0, 1.0, DEFAULT_LAYER_MIN_ZNCC);
+  install_double(gobject_class, PROP_LAYER_CENTRE_MIN_ZNCC, "layer-centre-min-zncc",
+                 "Layer centre minimum ZNCC",
+                 "Two-layer test: the 3x3 centre's correlation at the refined disparity must "
+                 "reach this; -1 = no minimum",
+                 -1.0, 1.0, DEFAULT_LAYER_CENTRE_MIN_ZNCC);
   install_boolean(gobject_class, PROP_POST_MESSAGES, "post-messages", "Post messages",
                   "Post a siftmatch element message per frame", DEFAULT_POST_MESSAGES);
 

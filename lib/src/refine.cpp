@@ -20,9 +20,11 @@ namespace {
 // Sub-pixel position of the best match of the zero-mean template `lc` (centred on a pixel of the
 // other view) along row `yi` of `img`, searched at integer centres xc-S..xc+S: the integer peak,
 // a parabola through it and its neighbours, then Gauss-Newton. False when there is no peak of at
-// least min_zncc inside the range.
+// least min_zncc inside the range, or when the scores over the range stay within min_drop of it
+// (the patch correlates about as well everywhere along the row: no position to measure).
 bool best_position(const std::vector<float> &lc, double lnorm, const cv::Mat &img, int xc, int yi,
-                   int h, int S, double min_zncc, std::vector<double> &scores, double &x_out)
+                   int h, int S, double min_zncc, double min_drop, std::vector<double> &scores,
+                   double &x_out)
 {
   scores.resize(std::size_t(2 * S + 3));
   // Offsets -S-1..S+1: the outer two only serve as parabola neighbours.
@@ -30,7 +32,8 @@ bool best_position(const std::vector<float> &lc, double lnorm, const cv::Mat &im
     scores[std::size_t(k + S + 1)] = zncc(lc, lnorm, img, xc + k, yi, h);
   const int best = int(std::max_element(scores.begin(), scores.end()) - scores.begin()) - S - 1;
   const double c0 = scores[std::size_t(best + S + 1)];
-  if (std::abs(best) > S || c0 < min_zncc)
+  if (std::abs(best) > S || c0 < min_zncc ||
+      c0 - *std::min_element(scores.begin(), scores.end()) < min_drop)
     return false; // the peak lies outside the search range, or there is no clear peak
   const double cm = scores[std::size_t(best + S)], cp = scores[std::size_t(best + S + 2)];
   const double delta = parabola_offset(cm, c0, cp);
@@ -67,6 +70,7 @@ double zncc_sub(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, i
 
 // Where the ZNCC of one sub-window (offsets [x0, x1] x [y0, y1] around the left pixel) peaks
 // among right positions xr + k, k = -range..range, refined by a parabola; relative to xr (px).
+// `scores[range]` is then the sub-window's ZNCC at xr itself.
 double sub_peak(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, int x0, int x1,
                 int y0, int y1, int range, std::vector<double> &scores)
 {
@@ -81,19 +85,26 @@ double sub_peak(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, i
 }
 
 // The two-layer test: the four quadrants of the (2h+1)^2 window (each with the centre row and
-// column) and its 3x3 centre, each searched on its own within +-range px, must all peak within
-// `tol` px of the refined position xr. A patch that straddles a depth edge is matched at the
-// disparity of its dominant (textured) layer; a part on the other layer then peaks at its own
-// disparity, or anywhere when it is flat. The 3x3 centre is what the match's pixel stands on.
-bool layers_agree(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, int h, int range,
-                  double tol, std::vector<double> &scores)
+// column) and its 3x3 centre, each searched on its own within +-layer_search px, must all peak
+// within the tolerance of the refined position xr (the centre: its own tolerance), and each
+// quadrant must correlate at xr with at least layer_min_zncc. A patch that straddles a depth edge
+// is matched at the disparity of its dominant (textured) layer; a part on the other layer then
+// peaks at its own disparity, or anywhere when it is flat, and correlates poorly at xr. The 3x3
+// centre is what the match's pixel stands on.
+bool layers_agree(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr,
+                  const RefineParams &p, std::vector<double> &scores)
 {
-  const int boxes[5][4] = {
-      {-h, 0, -h, 0}, {0, h, -h, 0}, {-h, 0, 0, h}, {0, h, 0, h}, {-1, 1, -1, 1}};
-  for (const auto &b : boxes)
-    if (!(std::abs(sub_peak(L, R, xi, yi, xr, b[0], b[1], b[2], b[3], range, scores)) <= tol))
+  const int h = p.layer_half_window, range = p.layer_search;
+  const int quadrants[4][4] = {{-h, 0, -h, 0}, {0, h, -h, 0}, {-h, 0, 0, h}, {0, h, 0, h}};
+  for (const auto &b : quadrants) {
+    const double peak = sub_peak(L, R, xi, yi, xr, b[0], b[1], b[2], b[3], range, scores);
+    if (!(std::abs(peak) <= p.layer_tolerance) || scores[std::size_t(range)] < p.layer_min_zncc)
       return false;
-  return true;
+  }
+  const double centre_tol =
+      p.layer_centre_tolerance < 0 ? p.layer_tolerance : p.layer_centre_tolerance;
+  const double peak = sub_peak(L, R, xi, yi, xr, -1, 1, -1, 1, range, scores);
+  return std::abs(peak) <= centre_tol && scores[std::size_t(range)] >= p.layer_centre_min_zncc;
 }
 
 } // namespace
@@ -108,6 +119,14 @@ void check_refine_params(const RefineParams &p)
     throw std::runtime_error("refinement: layer_tolerance must be a number (negative = off)");
   if (p.layer_half_window < 1 || p.layer_search < 1)
     throw std::runtime_error("refinement: need layer_half_window >= 1 and layer_search >= 1");
+  if (std::isnan(p.layer_centre_tolerance))
+    throw std::runtime_error(
+        "refinement: layer_centre_tolerance must be a number (negative = layer_tolerance)");
+  if (!(p.layer_min_zncc <= 1.0) || !(p.layer_centre_min_zncc <= 1.0))
+    throw std::runtime_error(
+        "refinement: layer_min_zncc and layer_centre_min_zncc must be <= 1 (-1 = no minimum)");
+  if (!(p.min_zncc_drop >= 0 && p.min_zncc_drop <= 2))
+    throw std::runtime_error("refinement: min_zncc_drop must be within 0..2 (0 = off)");
 }
 
 std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
@@ -129,14 +148,14 @@ std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
                         xc - S - 1 - h >= 0 && xc + S + 1 + h < R.cols;
     double lnorm = 0, xr = 0;
     if (!inside || !centred_patch(L, xi, yi, h, lc, lnorm) ||
-        !best_position(lc, lnorm, R, xc, yi, h, S, p.min_zncc, scores, xr))
+        !best_position(lc, lnorm, R, xc, yi, h, S, p.min_zncc, p.min_zncc_drop, scores, xr))
       continue;
     const double d = double(xi) - xr;
     if (p.layer_tolerance >= 0) {
       const int hl = p.layer_half_window, rs = p.layer_search;
       if (yi - hl < 0 || yi + hl >= L.rows || xi - hl < 0 || xi + hl >= L.cols ||
           xr - hl - rs < 0 || xr + hl + rs + 1 >= R.cols ||
-          !layers_agree(L, R, xi, yi, xr, hl, rs, p.layer_tolerance, scores))
+          !layers_agree(L, R, xi, yi, xr, p, scores))
         continue;
     }
     m.xr = float(double(m.xl) - d);

@@ -61,7 +61,10 @@ double gauss_newton_x(const std::vector<float> &lc, double lnorm, const cv::Mat 
   const int n = 2 * h + 1;
   std::vector<double> v(std::size_t(n * n)), g(std::size_t(n * n));
   const double x0 = xr;
-  for (int iter = 0; iter < 3; ++iter) {
+  // Six steps at most: with three, one patch of siftmatch's synthetic-shift test (23.37 px) stayed
+  // 0.11 px off at contrast-threshold 0.035 (steps are clamped to 0.5 px); a step below 1e-3 px
+  // ends the loop early.
+  for (int iter = 0; iter < 6; ++iter) {
     if (xr - h - 1.5 < 0 || xr + h + 1.5 >= img.cols - 1 || std::abs(xr - x0) > 1.0)
       return x0;
     double sum = 0;

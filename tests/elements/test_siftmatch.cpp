@@ -393,8 +393,12 @@ GST_START_TEST(test_property_ranges)
       {"max-depth", 1.0, 1e7, 10000.0},
       {"contrast-threshold", 0.001, 1.0, 0.04},
       {"scale", 0.0, 1.0, 0.0},
-      {"min-zncc", -1.0, 1.0, 0.8},
+      {"min-zncc", -1.0, 1.0, 0.9},
+      {"min-zncc-drop", 0.0, 2.0, 0.05},
       {"layer-tolerance", -1.0, 100.0, 0.5},
+      {"layer-centre-tolerance", -1.0, 100.0, 0.7},
+      {"layer-min-zncc", -1.0, 1.0, 0.7},
+      {"layer-centre-min-zncc", -1.0, 1.0, 0.6},
   };
   for (const Range &r : doubles) {
     GParamSpec *p = g_object_class_find_property(klass, r.name);

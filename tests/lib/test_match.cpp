@@ -399,6 +399,168 @@ TEST(Refine, TwoLayerTestRejectsBackgroundPixelGivenTheForegroundDisparity)
   EXPECT_THROW(refine_matches(s.left, s.right, m, on), std::runtime_error);
 }
 
+// A foreground rectangle at disparity `front` over a background at `back`, each with its own
+// texture attached to its surface (background contrast scaled by `back_contrast`): the right
+// pixel x sees the rectangle's point x + front when that lies in the rectangle, else the
+// background's point x + back. Left pixels of the background just left of the rectangle are
+// hidden in the right view (occluded) when front > back.
+struct Rectangle {
+  cv::Mat left, right;
+  Rectangle(cv::Rect rect, double front, double back, double back_contrast)
+  {
+    const cv::Size size(240, 120);
+    const int pad = int(std::ceil(std::max(front, back))) + 2;
+    cv::Mat bg = texture(cv::Size(size.width + pad, size.height), 61);
+    bg.convertTo(bg, -1, back_contrast, 128 * (1 - back_contrast));
+    const cv::Mat fg = texture(cv::Size(size.width + pad, size.height), 62);
+    left.create(size, CV_8U);
+    right.create(size, CV_8U);
+    const auto in_rect = [&](double x, int y) {
+      return y >= rect.y && y < rect.y + rect.height && x >= rect.x && x < rect.x + rect.width;
+    };
+    // The background's and the rectangle's points at a left x (sub-pixel: linear interpolation).
+    const auto at = [](const cv::Mat &m, double x, int y) {
+      const int i = int(std::floor(x));
+      const double f = x - i;
+      return (1 - f) * m.at<std::uint8_t>(y, i) + f * m.at<std::uint8_t>(y, i + 1);
+    };
+    for (int y = 0; y < size.height; ++y)
+      for (int x = 0; x < size.width; ++x) {
+        left.at<std::uint8_t>(y, x) =
+            in_rect(x, y) ? fg.at<std::uint8_t>(y, x) : bg.at<std::uint8_t>(y, x);
+        const double xf = x + front;
+        right.at<std::uint8_t>(y, x) =
+            cv::saturate_cast<std::uint8_t>(in_rect(xf, y) ? at(fg, xf, y) : at(bg, x + back, y));
+      }
+  }
+};
+
+TEST(Refine, LayerMinZnccRejectsOccludedBackgroundBesideForeground)
+{
+  // A strongly textured square at disparity 16 over a weakly textured background at 10. The
+  // background pixel 1 px left of the square's left edge is hidden in the right view; its 7x7
+  // patch is dominated by the square's texture and refines to the square's disparity. Its left
+  // quadrants, all background, then compare background with unrelated background 6 px away
+  // (the blurred texture decorrelates within a few px): a low ZNCC at the refined position.
+  const cv::Rect square(100, 30, 60, 60);
+  const double front = 16, back = 10;
+  const Rectangle s(square, front, back, 0.12);
+  const float y = 60, bad_x = float(square.x) - 1;
+  const std::vector<StereoMatch> input{
+      {bad_x, y, bad_x - float(front), y, 0.f},
+      {130.f, y, 130.f - float(front), y, 0.f},
+      {40.f, y, 40.f - float(back), y, 0.f},
+  };
+  // Peaks ignored (tolerances beyond the search range): only the ZNCC minimum can reject.
+  RefineParams p;
+  p.layer_tolerance = 100;
+  p.layer_centre_tolerance = 100;
+  std::vector<StereoMatch> m = input;
+  refine_matches(s.left, s.right, m, p);
+  ASSERT_EQ(m.size(), 3u); // the occluded pixel survives refinement at the square's disparity
+  EXPECT_NEAR(m[0].disparity(), front, 1.0);
+
+  p.layer_min_zncc = 0.7;
+  m = input;
+  EXPECT_EQ(refine_matches(s.left, s.right, m, p), 1u);
+  ASSERT_EQ(m.size(), 2u);
+  EXPECT_EQ(m[0].xl, 130.f);
+  EXPECT_NEAR(m[0].disparity(), front, 0.1);
+  EXPECT_EQ(m[1].xl, 40.f);
+  EXPECT_NEAR(m[1].disparity(), back, 0.1);
+}
+
+TEST(Refine, LayerCentreTestJudgesTheCentreOnItsOwn)
+{
+  // A fine texture at disparity 10 everywhere but the 3x3 block around the left pixel (60, 60),
+  // which the right view shows at disparity 12 (right pixels 47..49 of rows 59..61 show left
+  // pixels 59..61). The 7x7 patch and the quadrants (4 of whose 36 pixels are in the block)
+  // take disparity 10; the 3x3 centre alone peaks at 12, and at 10 it meets texture 2 px away,
+  // which a fine texture no longer resembles.
+  const cv::Size size(240, 120);
+  cv::Mat noise(size, CV_32F);
+  cv::RNG rng(91);
+  rng.fill(noise, cv::RNG::UNIFORM, 0.f, 255.f);
+  cv::GaussianBlur(noise, noise, cv::Size(), 0.8);
+  cv::Mat left;
+  noise.convertTo(left, CV_8U);
+  cv::Mat right = shift_left(left, 10);
+  for (int y = 59; y <= 61; ++y)
+    for (int x = 47; x <= 49; ++x)
+      right.at<std::uint8_t>(y, x) = left.at<std::uint8_t>(y, x + 12);
+  const std::vector<StereoMatch> input{{60.f, 60.f, 50.f, 60.f, 0.f},
+                                       {150.f, 60.f, 140.f, 60.f, 0.f}};
+  RefineParams p;
+  p.min_zncc = 0.5; // the block's 9 pixels lower the 7x7 patch's peak
+  p.layer_tolerance = 0.5;
+  p.layer_centre_tolerance = 3; // the centre's peak 2 px away does not matter
+  std::vector<StereoMatch> m = input;
+  EXPECT_EQ(refine_matches(left, right, m, p), 0u);
+  ASSERT_EQ(m.size(), 2u);
+  EXPECT_NEAR(m[0].disparity(), 10, 0.5); // the block pulls the 7x7 patch a little
+
+  p.layer_centre_tolerance = 0.7;
+  m = input;
+  EXPECT_EQ(refine_matches(left, right, m, p), 1u);
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_EQ(m[0].xl, 150.f);
+
+  p.layer_centre_tolerance = -1; // = layer_tolerance
+  m = input;
+  EXPECT_EQ(refine_matches(left, right, m, p), 1u);
+
+  p.layer_centre_tolerance = 3;
+  p.layer_centre_min_zncc = 0.6;
+  m = input;
+  EXPECT_EQ(refine_matches(left, right, m, p), 1u);
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_EQ(m[0].xl, 150.f);
+}
+
+TEST(Refine, MinZnccDropRejectsPatchWithoutHorizontalStructure)
+{
+  // Top half: a horizontal edge (grey 60 above row 50, 190 below) with a faint texture; bottom
+  // half: full texture. Shifted by 12.4 px. On the edge every position along the row correlates
+  // almost equally well (the aperture problem): the faint texture alone places the peak.
+  const double d = 12.4;
+  const cv::Size size(240, 160);
+  cv::Mat left = texture(size, 71);
+  cv::Mat faint = texture(size, 72);
+  for (int y = 0; y < 100; ++y)
+    for (int x = 0; x < size.width; ++x)
+      left.at<std::uint8_t>(y, x) =
+          cv::saturate_cast<std::uint8_t>((y < 50 ? 60 : 190) + 0.08 * faint.at<std::uint8_t>(y, x));
+  const cv::Mat right = shift_left(left, d);
+  const std::vector<StereoMatch> input{{100.f, 50.f, 88.f, 50.f, 0.f},
+                                       {100.f, 130.f, 88.f, 130.f, 0.f}};
+  RefineParams p;
+  std::vector<StereoMatch> m = input;
+  EXPECT_EQ(refine_matches(left, right, m, p), 0u); // no drop required: both kept
+
+  p.min_zncc_drop = 0.05;
+  m = input;
+  EXPECT_EQ(refine_matches(left, right, m, p), 1u);
+  ASSERT_EQ(m.size(), 1u);
+  EXPECT_EQ(m[0].yl, 130.f);
+  EXPECT_NEAR(m[0].disparity(), d, 0.1);
+}
+
+TEST(Refine, RejectsInvalidFilterParameters)
+{
+  const cv::Mat img = texture(cv::Size(64, 64), 81);
+  std::vector<StereoMatch> m;
+  const auto bad = [&](auto set) {
+    RefineParams p;
+    set(p);
+    EXPECT_THROW(refine_matches(img, img, m, p), std::runtime_error);
+  };
+  bad([](RefineParams &p) { p.layer_centre_tolerance = std::nan(""); });
+  bad([](RefineParams &p) { p.layer_min_zncc = 1.5; });
+  bad([](RefineParams &p) { p.layer_centre_min_zncc = std::nan(""); });
+  bad([](RefineParams &p) { p.min_zncc_drop = -0.1; });
+  bad([](RefineParams &p) { p.min_zncc_drop = std::nan(""); });
+}
+
 TEST(Middlebury, PfmAndCalibRoundTrip)
 {
   const std::string dir = ::testing::TempDir();

@@ -119,7 +119,7 @@ std::unique_ptr<Matcher> make_matcher(const MatcherParams &params);
 // Sub-pixel disparity at full resolution: ZNCC of a (2*half_window+1)^2 patch around the left
 // keypoint (rounded to the pixel) against patches of the right view on the same row, at integer
 // offsets within +-search px of the matcher's estimate; a parabola through the best score and its
-// two neighbours gives a sub-pixel start, and up to three Gauss-Newton steps on the linearly
+// two neighbours gives a sub-pixel start, and up to six Gauss-Newton steps on the linearly
 // interpolated right patch remove the parabola's pull towards whole pixels (on a smooth texture
 // shifted by 23.37 px: every error below 0.1 px, median 0.013 px; the parabola alone: up to 0.34). A match is rejected when the best score is below
 // min_zncc, when the best offset is outside +-search (the estimate was off) or when the patch
@@ -137,13 +137,28 @@ std::unique_ptr<Matcher> make_matcher(const MatcherParams &params);
 // (docs/results.md). Off here, so lib's callers get every match; the siftmatch element turns it
 // on (0.5): with stereodepth's densification the chain measures the same with or without it
 // (docs/elements/siftmatch.md).
+//
+// Three refinements of that test, all off here and on in siftmatch (with min_zncc 0.9 and
+// min_zncc_drop 0.05, which rejects a patch whose correlation hardly changes along the row, such
+// as a horizontal edge: the aperture problem): the 3x3 centre, only 9 pixels, has its own
+// tolerance (layer_centre_tolerance), since its peak wanders further than a quadrant's on one
+// surface; and each quadrant's, and the centre's, ZNCC at the refined position must reach
+// layer_min_zncc and layer_centre_min_zncc: a part of the window that is not where the match puts
+// it (another layer, or one hidden in the right view) correlates poorly there even when its peak
+// happens to lie close. On treetestsrc pairs they remove a third to a half of the wrong matches
+// the quadrant peaks leave, for 5-6% fewer matches; on Jadeplant 2 of 4 (docs/results.md).
 struct RefineParams {
   int half_window = 3;   // 7x7 patches: fewer straddle a depth edge than 11x11
   int search = 2;        // px around the estimate
   double min_zncc = 0.8; // the correlation peak must be at least this
+  double min_zncc_drop = 0; // the peak must exceed the lowest score within +-(search + 1) px by
+                            // at least this (0 = off; siftmatch: 0.05)
   double layer_tolerance = -1;  // px; negative = off (lib's default; siftmatch's is 0.5)
   int layer_half_window = 5;    // quadrants of 6x6 px
   int layer_search = 3;         // px
+  double layer_centre_tolerance = -1; // px for the 3x3 centre; negative = layer_tolerance
+  double layer_min_zncc = -1;         // quadrants' ZNCC at the refined position; -1 = no minimum
+  double layer_centre_min_zncc = -1;  // the centre's; -1 = no minimum
 };
 
 // Throws std::runtime_error when a value is out of range.
