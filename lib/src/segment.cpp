@@ -464,44 +464,47 @@ void VegetationSegmenter::unmix_edges(const cv::Mat &view, const cv::Rect &box, 
   constexpr int r = 2;
   const cv::Rect roi = cv::Rect(box.x - r - 1, box.y - r - 1, box.width + 2 * r + 2,
                                 box.height + 2 * r + 2) & cv::Rect(cv::Point(0, 0), view.size());
-  const cv::Mat m = mask(roi), v = view(roi);
+  cv::Mat m = mask(roi);
+  const cv::Mat v = view(roi);
   const cv::Mat k3 = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
   // Beyond the image: background for the dilation, canopy for the erosion, so a canopy that
   // touches the border has no boundary there (nothing is known beyond it).
   cv::dilate(m, dil_, k3, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(0));
   cv::erode(m, ero_, k3, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(255));
+  // Class per pixel: 0 pure background, 1 pure canopy (inside the eroded mask), 2 boundary.
+  // (ero <= m <= dil, so dil - ero is 255 exactly on the boundary.)
+  cv::subtract(dil_, ero_, cls_);
+  cv::min(cls_, 2, cls_);
+  cls_.setTo(1, ero_);
   const ChannelOrder &o = params_.order;
   const int cn = view.channels();
   const double min_dd = params_.unmix_min_contrast * params_.unmix_min_contrast;
-  const auto boundary = [&](int x, int y) { return dil_.at<uchar>(y, x) && !ero_.at<uchar>(y, x); };
   // Whether boundary pixel (x, y) of the roi is on the other side of half coverage than the
   // mask has it.
   const auto unmixed_class_differs = [&](int x, int y) {
-    double f[3] = {0, 0, 0}, b[3] = {0, 0, 0};
-    int nf = 0, nb = 0;
+    int sum[2][3] = {{0, 0, 0}, {0, 0, 0}}, n[2] = {0, 0}; // [background, canopy]
+    const int x0 = std::max(0, x - r), x1 = std::min(m.cols - 1, x + r);
     for (int yy = std::max(0, y - r); yy <= std::min(m.rows - 1, y + r); ++yy) {
-      const uchar *mr = m.ptr<uchar>(yy), *vr = v.ptr<uchar>(yy);
-      for (int xx = std::max(0, x - r); xx <= std::min(m.cols - 1, x + r); ++xx) {
-        if (boundary(xx, yy))
+      const uchar *c = cls_.ptr<uchar>(yy), *px = v.ptr<uchar>(yy) + x0 * cn;
+      for (int xx = x0; xx <= x1; ++xx, px += cn) {
+        const int k = c[xx];
+        if (k == 2)
           continue;
-        const uchar *px = vr + xx * cn;
-        double *acc = mr[xx] ? f : b;
-        (mr[xx] ? nf : nb) += 1;
-        acc[0] += px[o.r];
-        acc[1] += px[o.g];
-        acc[2] += px[o.b];
+        n[k] += 1;
+        sum[k][0] += px[o.r];
+        sum[k][1] += px[o.g];
+        sum[k][2] += px[o.b];
       }
     }
-    if (nf < 3 || nb < 3)
+    if (n[0] < 3 || n[1] < 3)
       return false;
     const uchar *px = v.ptr<uchar>(y) + x * cn;
-    const double q[3] = {double(px[o.r]), double(px[o.g]), double(px[o.b])};
+    const int q[3] = {px[o.r], px[o.g], px[o.b]};
     double dd = 0, pd = 0;
-    for (int c = 0; c < 3; ++c) {
-      f[c] /= nf;
-      b[c] /= nb;
-      dd += (f[c] - b[c]) * (f[c] - b[c]);
-      pd += (q[c] - b[c]) * (f[c] - b[c]);
+    for (int ch = 0; ch < 3; ++ch) {
+      const double f = double(sum[1][ch]) / n[1], b = double(sum[0][ch]) / n[0];
+      dd += (f - b) * (f - b);
+      pd += (q[ch] - b) * (f - b);
     }
     return dd >= min_dd && (pd >= 0.5 * dd) != bool(m.at<uchar>(y, x));
   };
@@ -513,17 +516,16 @@ void VegetationSegmenter::unmix_edges(const cv::Mat &view, const cv::Rect &box, 
       flip.clear();
       const cv::Range rows = stripe_rows(st, nstripes, m.rows);
       for (int y = rows.start; y < rows.end; ++y) {
-        const uchar *dr = dil_.ptr<uchar>(y), *er = ero_.ptr<uchar>(y);
+        const uchar *c = cls_.ptr<uchar>(y);
         for (int x = 0; x < m.cols; ++x)
-          if (dr[x] != er[x] && unmixed_class_differs(x, y))
+          if (c[x] == 2 && unmixed_class_differs(x, y))
             flip.emplace_back(x, y);
       }
     }
   });
-  cv::Mat out = mask(roi);
   for (const std::vector<cv::Point> &flip : flip_)
     for (const cv::Point &q : flip)
-      out.at<uchar>(q) = out.at<uchar>(q) ? 0 : 255;
+      m.at<uchar>(q) = m.at<uchar>(q) ? 0 : 255;
 }
 
 void VegetationSegmenter::run(const cv::Mat &view, Silhouette &out)

@@ -145,7 +145,7 @@ private:
   cv::Mat cov_, bin_, tmp_, fin_, up_; // work-scale coverage, binary, morphology, result; upscaled
   cv::Mat labels_, stats_, centroids_;
   std::vector<uchar> touched_; // per label of the thresholded mask: reached by the opening
-  cv::Mat dil_, ero_;           // unmix_edges: the mask dilated / eroded by one pixel
+  cv::Mat dil_, ero_, cls_; // unmix_edges: mask dilated / eroded by one pixel, pixel classes
   std::vector<std::vector<cv::Point>> flip_; // unmix_edges: per stripe, pixels that change
 };
 
