@@ -5,7 +5,8 @@
 //     ground-truth canopy mask rectified the same way (pixel extents, in rectified pixels);
 //   - the extents of compute_tree_metrics for every ExtentDepth model, fed (a) the segmented
 //     mask and the matched points (what treemetrics sees), (b) the true mask and the matched
-//     points, (c) the true mask and the true visible canopy points (perfect depth);
+//     points, (c) the true mask and the true visible canopy points (perfect depth), (d) the
+//     segmented mask and the true points (what the segmentation alone costs);
 // against the canopy's true 3D height and width. Prints markdown tables.
 //
 //   bench-extent [--sizes 1296x972] [--distances 1.8,2.0,2.2] [--seeds 1,2,3] [--lights 1.0]

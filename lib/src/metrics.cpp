@@ -241,10 +241,11 @@ bool robust_line_fit(const std::vector<double> &x, const std::vector<double> &z,
 // which that ray is inside the canopy, so the extent stays a lower bound.
 // `rho` (mm): the surface's radius of curvature at the limb (MetricsParams::round_limbs), from the
 // same points: z = b0 + b1 sqrt(d) with d = inset * z / f mm inside the silhouette's boundary
-// (`inset`: px along this edge's axis, see insets()), rho = b1^2 / 2; 0 when there was no fit.
+// (`inset`: px along this edge's axis, see insets(); null: not wanted), rho = b1^2 / 2; 0 when
+// there was no fit.
 double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, bool vertical,
                   double t_edge, double t_other, double fraction, std::size_t min_points,
-                  double fallback, bool clipped, const std::vector<double> &inset, double &rho)
+                  double fallback, bool clipped, const std::vector<double> *inset, double &rho)
 {
   rho = 0;
   const double fy = g.fy > 0 ? g.fy : g.fx;
@@ -263,14 +264,14 @@ double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, 
     if (z.size() < min_points)
       continue;
     double a0 = 0, a1 = 0;
-    if (clipped || !robust_line_fit(r, z, a0, a1) || !(a1 <= 0) || !(a0 > 0))
+    if (clipped || !robust_line_fit(r, z, a0, a1) || !(a1 <= 0))
       return median(z);
-    {
+    if (inset) {
       std::vector<double> sq, zz;
       const double fpx = vertical ? fy : g.fx;
       for (std::size_t i = 0; i < pts.size(); ++i)
-        if (dist[i] <= f && inset[i] >= 0) {
-          sq.push_back(std::sqrt(inset[i] * pts[i].z_mm / fpx));
+        if (dist[i] <= f && (*inset)[i] >= 0) {
+          sq.push_back(std::sqrt((*inset)[i] * pts[i].z_mm / fpx));
           zz.push_back(pts[i].z_mm);
         }
       double b0 = 0, b1 = 0;
@@ -284,23 +285,25 @@ double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, 
 
 // Each point's distance (px) inside the silhouette's boundary along an axis: from its row's left
 // and right ends, its column's top and bottom ends (-1 when off the silhouette's rows/columns).
-std::array<std::vector<double>, 4> insets(const std::vector<CanopyPoint> &pts, const cv::Mat &mask)
+// `rows`: row_extents() of `mask`; the columns come from the transposed bounding box alone.
+std::array<std::vector<double>, 4> insets(const std::vector<CanopyPoint> &pts, const cv::Mat &mask,
+                                          const RowExtents &rows)
 {
-  const RowExtents rows = row_extents(mask);
-  const cv::Mat mt = mask.t();
-  const RowExtents cols = row_extents(mt);
+  const cv::Rect &b = rows.bbox;
+  const cv::Mat mt = mask(b).t();
+  const RowExtents cols = row_extents(mt); // in bbox coordinates: column c - b.x, row - b.y
   std::array<std::vector<double>, 4> in;
   for (auto &v : in)
     v.assign(pts.size(), -1.0);
   for (std::size_t i = 0; i < pts.size(); ++i) {
-    const int r = int(std::lround(pts[i].v)), c = int(std::lround(pts[i].u));
-    if (r >= rows.bbox.y && r < rows.bbox.br().y && rows.xl(r) >= 0) {
+    const int r = int(std::lround(pts[i].v)), c = int(std::lround(pts[i].u)) - b.x;
+    if (r >= b.y && r < b.br().y && rows.xl(r) >= 0) {
       in[0][i] = pts[i].u - (rows.xl(r) - 0.5);
       in[1][i] = rows.xr(r) + 0.5 - pts[i].u;
     }
     if (c >= cols.bbox.y && c < cols.bbox.br().y && cols.xl(c) >= 0) {
-      in[2][i] = pts[i].v - (cols.xl(c) - 0.5);
-      in[3][i] = cols.xr(c) + 0.5 - pts[i].v;
+      in[2][i] = pts[i].v - (b.y + cols.xl(c) - 0.5);
+      in[3][i] = b.y + cols.xr(c) + 0.5 - pts[i].v;
     }
   }
   return in;
@@ -309,9 +312,12 @@ std::array<std::vector<double>, 4> insets(const std::vector<CanopyPoint> &pts, c
 Converter tangent_points(const std::vector<CanopyPoint> &pts, const Slopes &s,
                          const StereoGeometry &g, double fraction, std::size_t min_points,
                          double fallback, const Clipped &clip, bool round_limbs,
-                         const cv::Mat &mask)
+                         const cv::Mat &mask, const RowExtents &rows)
 {
-  const std::array<std::vector<double>, 4> in = insets(pts, mask);
+  std::array<std::vector<double>, 4> in;
+  if (round_limbs)
+    in = insets(pts, mask, rows);
+  const auto inset = [&](int side) { return round_limbs ? &in[std::size_t(side)] : nullptr; };
   Converter c;
   c.sided = true;
   c.t0x = s.left;
@@ -320,13 +326,13 @@ Converter tangent_points(const std::vector<CanopyPoint> &pts, const Slopes &s,
   c.t1y = s.bottom;
   double rho[4];
   c.z0x = side_depth(pts, g, false, s.left, s.right, fraction, min_points, fallback, clip.left,
-                     in[0], rho[0]);
+                     inset(0), rho[0]);
   c.z1x = side_depth(pts, g, false, s.right, s.left, fraction, min_points, fallback, clip.right,
-                     in[1], rho[1]);
+                     inset(1), rho[1]);
   c.z0y = side_depth(pts, g, true, s.top, s.bottom, fraction, min_points, fallback, clip.top,
-                     in[2], rho[2]);
+                     inset(2), rho[2]);
   c.z1y = side_depth(pts, g, true, s.bottom, s.top, fraction, min_points, fallback,
-                     clip.bottom, in[3], rho[3]);
+                     clip.bottom, inset(3), rho[3]);
   const double dt = s.right - s.left;
   c.z_ext = dt > 0 ? (c.x(s.right) - c.x(s.left)) / dt : fallback;
   c.zc = c.z_ext;
@@ -369,7 +375,7 @@ Converter choose_converter(const MetricsParams &p, const Slopes &s, const Summar
   case ExtentDepth::kRoundCanopy: return round_canopy(s, percentile(z, p.near_percentile));
   case ExtentDepth::kTangentPoints:
     return tangent_points(pts, s, g, p.tangent_fraction, std::size_t(p.tangent_min_points), mid,
-                          clip, p.round_limbs, mask);
+                          clip, p.round_limbs, mask, e);
   case ExtentDepth::kEdgePoints: c.z_ext = edge_depth(pts, e, p.edge_fraction, mid); break;
   case ExtentDepth::kMidDepth: c.z_ext = mid; break;
   case ExtentDepth::kFrontFace: c.z_ext = depth.median; break;

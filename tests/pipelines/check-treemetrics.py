@@ -25,22 +25,20 @@ A frame whose canopy touches the image's left or right border (clipped) has a wi
 a lower bound, and one touching the top or bottom a height that is: those are checked to stay
 below truth * (1 + tolerance) and above zero, not to reach the truth.
 Usage: check-treemetrics.py <log> <truth.json> <frames> [--profile jpeg640|sweep1296]"""
+import argparse
 import json
 import math
 import re
-import sys
 
-args = [a for a in sys.argv[1:] if not a.startswith('--profile')]
-profile = 'jpeg640'
-for i, a in enumerate(sys.argv):
-    if a == '--profile':
-        profile = sys.argv[i + 1]
-        args.remove(profile)
-log, truth_path, frames = args[0], args[1], int(args[2])
 tolerances = {'jpeg640': {'distance': 0.015, 'height': 0.06, 'width': 0.06, 'thickness': 0.25},
               'sweep1296': {'distance': 0.01, 'height': 0.05, 'width': 0.05, 'thickness': 0.20}}
-if profile not in tolerances:
-    sys.exit('check-treemetrics: unknown profile %s' % profile)
+ap = argparse.ArgumentParser()
+ap.add_argument('log')
+ap.add_argument('truth')
+ap.add_argument('frames', type=int)
+ap.add_argument('--profile', choices=sorted(tolerances), default='jpeg640')
+opts = ap.parse_args()
+log, truth_path, frames, profile = opts.log, opts.truth, opts.frames, opts.profile
 tol = tolerances[profile]
 truth = json.load(open(truth_path))
 msgs = [l for l in open(log) if '(element): treemetrics, ' in l]
@@ -96,4 +94,4 @@ if profile == 'sweep1296' and len(dist_err_cm) >= 2:
         errors.append('distance error std %.2f cm over the frames, target 0.5 cm' % std_cm)
 for e in errors:
     print('FAIL:', e)
-sys.exit(1 if errors else 0)
+raise SystemExit(1 if errors else 0)
