@@ -11,7 +11,7 @@ cmds=$(sed -n '/^## The two commands/,/^```$/p' README.md | sed -n 's|^\(\./[^ ]
 status=0
 for c in $cmds; do
   f=${c#./}
-  if [ -d .git ] || git rev-parse --git-dir >/dev/null 2>&1; then
+  if git rev-parse --git-dir >/dev/null 2>&1; then
     mode=$(git ls-files -s -- "$f" | awk '{print $1}')
     [ "$mode" = 100755 ] || { echo "FAIL: $f is recorded with mode ${mode:-none}, not 100755"; status=1; }
   fi
