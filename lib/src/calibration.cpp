@@ -94,13 +94,50 @@ std::string with_opencv_yaml_header(const std::string &text)
   return "%YAML:1.0\n" + body;
 }
 
+// YAML's block indentation: a line that dedents must come back to the column of an enclosing
+// level. OpenCV 4.6's own YAML parser loops forever on some lines that dedent to a column in
+// between (found by fuzz-calibration: "%YAML:1.0\n   rows: 1\n A---\nx"), so such text is refused
+// before it reaches the parser. XML and JSON are left to OpenCV. Returns the 1-based line number
+// of the first bad line, 0 when the indentation is consistent.
+std::size_t inconsistent_yaml_indent(const std::string &text)
+{
+  const std::size_t first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && (text[first] == '<' || text[first] == '{'))
+    return 0;
+  std::vector<std::size_t> levels{0};
+  std::size_t line_no = 0;
+  for (std::size_t pos = 0; pos <= text.size();) {
+    const std::size_t end = std::min(text.find('\n', pos), text.size());
+    ++line_no;
+    const std::size_t indent = std::min(text.find_first_not_of(' ', pos), end) - pos;
+    const bool blank = pos + indent >= end || text[pos + indent] == '\r' || text[pos + indent] == '#';
+    if (!blank) {
+      if (indent > levels.back()) {
+        levels.push_back(indent);
+      } else {
+        while (levels.back() > indent)
+          levels.pop_back();
+        if (levels.back() != indent)
+          return line_no;
+      }
+    }
+    pos = end + 1;
+  }
+  return 0;
+}
+
 // Opens a FileStorage for reading; a syntax error becomes a CalibrationError naming the file.
 cv::FileStorage open_for_reading(const std::string &file)
 {
   const std::string text = read_checked(file);
+  const bool gz = ends_with(lower(file), ".gz");
+  if (const std::size_t bad = gz ? 0 : inconsistent_yaml_indent(text))
+    throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (line " +
+                                         std::to_string(bad) +
+                                         " is indented to a column no enclosing line has)");
   cv::FileStorage fs;
   try {
-    if (ends_with(lower(file), ".gz"))
+    if (gz)
       fs.open(file, cv::FileStorage::READ);
     else
       fs.open(with_opencv_yaml_header(text), cv::FileStorage::READ | cv::FileStorage::MEMORY);

@@ -4,7 +4,9 @@
 # writes one JSON line per pair. The fake images are not trees (tree_present may be false).
 # The first frames of two free-running cameras come in a burst and a few are dropped as
 # unpaired (docs/aravis.md): up to 8 of 20 pairs may be missing. The pair queue holds them all,
-# so a loaded machine slows the run down instead of dropping pairs.
+# so a loaded machine slows the run down instead of dropping pairs. Under the sanitizers
+# (TREESTEREO_SANITIZER_PRELOAD set) the fake cameras' frames stop arriving for seconds now and
+# then (see test-aravis-live.sh): there at least 5 pairs are asked for, not n - 8.
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 measure=${1:?usage: test-measure-cameras.sh TREESTEREO_MEASURE}
@@ -20,7 +22,9 @@ timeout 60 "$measure" --camera-left 127.0.0.1 --camera-right 127.0.0.2 --calibra
   --camera-caps video/x-bayer,framerate=10/1 --frames $n --latency 250 --max-skew 75 --pair-queue $n \
   --json "$tmp/r.jsonl" --quiet >"$tmp/run.log" 2>&1 || { cat "$tmp/run.log"; echo "FAIL: exit $?"; exit 1; }
 lines=$(wc -l <"$tmp/r.jsonl")
-[ "$lines" -ge $((n - 8)) ] && [ "$lines" -le $n ] || { cat "$tmp/run.log"; echo "FAIL: $lines pairs of $n frames"; exit 1; }
+least=$((n - 8))
+[ -n "${TREESTEREO_SANITIZER_PRELOAD:-}" ] && least=5
+[ "$lines" -ge $least ] && [ "$lines" -le $n ] || { cat "$tmp/run.log"; echo "FAIL: $lines pairs of $n frames"; exit 1; }
 python3 -c "
 import json, sys
 for l in open('$tmp/r.jsonl'):
