@@ -337,14 +337,27 @@ StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,
     throw std::runtime_error("stereo matching: refinement needs two views of the same size");
   StereoMatchResult res;
   auto t0 = std::chrono::steady_clock::now();
+  // Grey once per view, for detection and for refinement, in the view's own thread.
   Features fl, fr;
+  cv::Mat gl, gr;
   if (params_.parallel_detect) {
-    auto right_job = worker_->run([&] { return detector_[RIGHT].detect(right, mask_right); });
-    fl = detector_[LEFT].detect(left, mask_left);
+    auto right_job = worker_->run([&] {
+      gr = to_gray8(right);
+      return detector_[RIGHT].detect(gr, mask_right);
+    });
+    try {
+      gl = to_gray8(left);
+      fl = detector_[LEFT].detect(gl, mask_left);
+    } catch (...) {
+      right_job.wait(); // it reads the caller's views and writes gr
+      throw;
+    }
     fr = right_job.get();
   } else {
-    fl = detector_[LEFT].detect(left, mask_left);
-    fr = detector_[RIGHT].detect(right, mask_right);
+    gl = to_gray8(left);
+    fl = detector_[LEFT].detect(gl, mask_left);
+    gr = to_gray8(right);
+    fr = detector_[RIGHT].detect(gr, mask_right);
   }
   res.stats.detect_ms = ms_since(t0);
   res.stats.keypoints = {{fl.size(), fr.size()}};
@@ -355,7 +368,7 @@ StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,
 
   if (params_.refine) {
     t0 = std::chrono::steady_clock::now();
-    res.stats.rejected_refine = refine_matches(left, right, res.matches, params_.refine_params);
+    res.stats.rejected_refine = refine_matches(gl, gr, res.matches, params_.refine_params);
     res.stats.refine_ms = ms_since(t0);
   }
   res.stats.matches = res.matches.size();

@@ -2,6 +2,8 @@
 
 #include "zncc.hpp"
 
+#include <opencv2/core/utility.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -137,31 +139,39 @@ std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
   check_refine_params(p);
   const cv::Mat L = to_gray8(left), R = to_gray8(right);
   const int h = p.half_window, S = p.search;
-  std::vector<float> lc;
-  std::vector<double> scores;
-  std::size_t kept = 0;
-  for (const StereoMatch &m0 : matches) {
-    StereoMatch m = m0;
-    const int xi = int(std::lround(m.xl)), yi = int(std::lround(m.yl));
-    const int xc = int(std::lround(double(xi) - m.disparity())); // right estimate on the pixel grid
-    const bool inside = yi - h >= 0 && yi + h < L.rows && xi - h >= 0 && xi + h < L.cols &&
-                        xc - S - 1 - h >= 0 && xc + S + 1 + h < R.cols;
-    double lnorm = 0, xr = 0;
-    if (!inside || !centred_patch(L, xi, yi, h, lc, lnorm) ||
-        !best_position(lc, lnorm, R, xc, yi, h, S, p.min_zncc, p.min_zncc_drop, scores, xr))
-      continue;
-    const double d = double(xi) - xr;
-    if (p.layer_tolerance >= 0) {
-      const int hl = p.layer_half_window, rs = p.layer_search;
-      if (yi - hl < 0 || yi + hl >= L.rows || xi - hl < 0 || xi + hl >= L.cols ||
-          xr - hl - rs < 0 || xr + hl + rs + 1 >= R.cols ||
-          !layers_agree(L, R, xi, yi, xr, p, scores))
+  // Each match is refined on its own: split them over the threads, then keep the survivors in
+  // their order.
+  std::vector<unsigned char> keep(matches.size(), 0);
+  cv::parallel_for_(cv::Range(0, int(matches.size())), [&](const cv::Range &range) {
+    std::vector<float> lc;
+    std::vector<double> scores;
+    for (int i = range.start; i < range.end; ++i) {
+      StereoMatch &m = matches[std::size_t(i)];
+      const int xi = int(std::lround(m.xl)), yi = int(std::lround(m.yl));
+      const int xc = int(std::lround(double(xi) - m.disparity())); // right estimate on the grid
+      const bool inside = yi - h >= 0 && yi + h < L.rows && xi - h >= 0 && xi + h < L.cols &&
+                          xc - S - 1 - h >= 0 && xc + S + 1 + h < R.cols;
+      double lnorm = 0, xr = 0;
+      if (!inside || !centred_patch(L, xi, yi, h, lc, lnorm) ||
+          !best_position(lc, lnorm, R, xc, yi, h, S, p.min_zncc, p.min_zncc_drop, scores, xr))
         continue;
+      if (p.layer_tolerance >= 0) {
+        const int hl = p.layer_half_window, rs = p.layer_search;
+        if (yi - hl < 0 || yi + hl >= L.rows || xi - hl < 0 || xi + hl >= L.cols ||
+            xr - hl - rs < 0 || xr + hl + rs + 1 >= R.cols ||
+            !layers_agree(L, R, xi, yi, xr, p, scores))
+          continue;
+      }
+      const double d = double(xi) - xr;
+      m.xr = float(double(m.xl) - d);
+      m.yr = m.yl;
+      keep[std::size_t(i)] = 1;
     }
-    m.xr = float(double(m.xl) - d);
-    m.yr = m.yl;
-    matches[kept++] = m;
-  }
+  });
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < matches.size(); ++i)
+    if (keep[i])
+      matches[kept++] = matches[i];
   const std::size_t removed = matches.size() - kept;
   matches.resize(kept);
   return removed;
