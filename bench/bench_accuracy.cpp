@@ -6,7 +6,7 @@
 //   bench-accuracy [--sizes 1296x972,2592x1944] [--distances 1.5:2.5:0.1] [--seeds 1,2,3]
 //                  [--lights 0.7,1.0,1.3] [--frames 1] [--csv FILE]
 //                  [--siftmatch "layer-tolerance=-1 ..."] [--exgsegment "unmix-edges=false ..."]
-//                  [--treemetrics "round-limbs=false ..."]
+//                  [--stereodepth "edge-band=0 ..."] [--treemetrics "round-limbs=false ..."]
 //                  (the elements' properties, gst-launch syntax)
 //
 // Truth: distance and thickness are the visible canopy surface's median and p95-p05 depth in the
@@ -65,20 +65,24 @@ SceneParams scene_of(const Config &c)
   return p;
 }
 
+// Extra properties per element, gst-launch syntax.
+struct ElementProps {
+  std::string exgsegment, siftmatch, stereodepth, treemetrics;
+};
+
 std::vector<Result> run_config(const Config &c, int frames, const std::string &calib,
-                               const std::string &exgsegment_props,
-                               const std::string &siftmatch_props,
-                               const std::string &treemetrics_props)
+                               const ElementProps &props)
 {
   char desc[2048];
   std::snprintf(desc, sizeof desc,
-                "stereorectify name=r calibration=%s ! exgsegment %s ! siftmatch %s ! stereodepth ! "
+                "stereorectify name=r calibration=%s ! exgsegment %s ! siftmatch %s ! stereodepth %s ! "
                 "treemetrics post-messages=false %s ! appsink name=out sync=false "
                 "treetestsrc view=left seed=%llu distance=%g light=%g num-buffers=%d "
                 "truth-maps=false ! video/x-raw,format=RGB,width=%d,height=%d ! r.left "
                 "treetestsrc view=right seed=%llu distance=%g light=%g num-buffers=%d "
                 "truth-maps=false ! video/x-raw,format=RGB,width=%d,height=%d ! r.right",
-                calib.c_str(), exgsegment_props.c_str(), siftmatch_props.c_str(), treemetrics_props.c_str(), (unsigned long long)c.seed, c.distance_m, c.light, frames,
+                calib.c_str(), props.exgsegment.c_str(), props.siftmatch.c_str(),
+                props.stereodepth.c_str(), props.treemetrics.c_str(), (unsigned long long)c.seed, c.distance_m, c.light, frames,
                 c.size.width, c.size.height, (unsigned long long)c.seed, c.distance_m, c.light,
                 frames, c.size.width, c.size.height);
   GError *err = nullptr;
@@ -186,7 +190,8 @@ int main(int argc, char **argv)
     g_setenv("GST_PLUGIN_PATH_1_0", TREESTEREO_PLUGIN_BUILD_DIR, TRUE);
   gst_init(&argc, &argv);
   Sweep sweep{"1296x972,2592x1944", "1.5:2.5:0.1", "1,2,3", "0.7,1.0,1.3"};
-  std::string csv, siftmatch_props, exgsegment_props, treemetrics_props;
+  std::string csv;
+  ElementProps props;
   int frames = 1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
@@ -197,11 +202,13 @@ int main(int argc, char **argv)
     else if (a == "--csv")
       csv = v;
     else if (a == "--siftmatch")
-      siftmatch_props = v;
+      props.siftmatch = v;
     else if (a == "--exgsegment")
-      exgsegment_props = v;
+      props.exgsegment = v;
     else if (a == "--treemetrics")
-      treemetrics_props = v;
+      props.treemetrics = v;
+    else if (a == "--stereodepth")
+      props.stereodepth = v;
     else {
       std::fprintf(stderr, "bench-accuracy: unknown option %s\n", a.c_str());
       return 2;
@@ -218,7 +225,7 @@ int main(int argc, char **argv)
       for (double s : parse_list(sweep.seeds))
         for (double l : parse_list(sweep.lights)) {
           Config c{size, d, std::uint64_t(s), l};
-          std::vector<Result> r = run_config(c, frames, calib, exgsegment_props, siftmatch_props, treemetrics_props);
+          std::vector<Result> r = run_config(c, frames, calib, props);
           for (const Result &x : r)
             std::fprintf(stderr,
                          "%dx%d d=%.1f seed=%llu light=%.1f: %s distance %.4f (truth %.4f) "

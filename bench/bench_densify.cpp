@@ -18,6 +18,7 @@
 //                 [--step 0] [--target 4000] [--half-window 3] [--min-zncc 0.8]
 //                 [--margin 0.05] [--lr 1] [--tangent-fraction 0.1] [--tangent-min 15] [--round-limbs 1]
 //                 [--morph 5] [--reconstruct 1] [--area-weighted 1] [--outlier-k 3.5]
+//                 [--edge-band 0.05] [--edge-step 0] [--extreme-points 6]
 #include "scene_pairs.hpp"
 #include "sweep.hpp"
 #include "treestereo/densify.hpp"
@@ -97,6 +98,12 @@ int main(int argc, char **argv)
       segp.morph_size = std::stoi(v);
     else if (a == "--reconstruct")
       segp.reconstruct = std::stoi(v) != 0;
+    else if (a == "--extreme-points")
+      mpar.extreme_points = std::stoi(v);
+    else if (a == "--edge-band")
+      dp.edge_band = std::stod(v);
+    else if (a == "--edge-step")
+      dp.edge_step = std::stoi(v);
     else if (a == "--lr")
       dp.left_right_check = std::stoi(v) != 0;
     else {

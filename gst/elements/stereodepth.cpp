@@ -22,7 +22,12 @@
  *   leaves. Densification maps the frame read-only; it needs side-by-side frames and exgsegment's
  *   #GstTreeStereoVegetationMeta, and without them (or with fewer than 10 matches, or no canopy)
  *   the points are the matches' alone (a warning, once, says which is missing). With
- *   densify=FALSE the pixels are not touched (not even mapped).
+ *   densify=FALSE the pixels are not touched (not even mapped). Near the silhouette's extremes
+ *   the grid is finer: the mask pixels within #stereodepth:edge-band (0.04) of the canopy box's
+ *   height of its top and bottom rows, and of its width of its leftmost and rightmost columns,
+ *   are sampled every #stereodepth:edge-step px (automatic: view width / 648, at least 2 px). The
+ *   canopy's 3D extremes are there, often on clusters behind the silhouette's edge, and
+ *   treemetrics' #treemetrics:extreme-points reads height and width from them.
  * - `mode=dense` runs OpenCV's StereoSGBM (3-way) on the canopy's bounding box of the left view
  *   (and the columns of the right view a match can come from), keeps the pixels of the
  *   vegetation mask, and attaches the depth map (GRAY16_LE, mm, 0 = unknown) to the points meta;
@@ -129,6 +134,8 @@ enum {
   PROP_POST_MESSAGES,
   PROP_DENSIFY,
   PROP_DENSIFY_STEP,
+  PROP_EDGE_BAND,
+  PROP_EDGE_STEP,
 };
 
 namespace {
@@ -424,6 +431,8 @@ static void gst_stereo_depth_set_property(GObject *object, guint prop_id, const 
   case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
   case PROP_DENSIFY: s.densify = g_value_get_boolean(value); break;
   case PROP_DENSIFY_STEP: s.grid.step = g_value_get_int(value); break;
+  case PROP_EDGE_BAND: s.grid.edge_band = g_value_get_double(value); break;
+  case PROP_EDGE_STEP: s.grid.edge_step = g_value_get_int(value); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
 }
@@ -451,6 +460,8 @@ static void gst_stereo_depth_get_property(GObject *object, guint prop_id, GValue
   case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
   case PROP_DENSIFY: g_value_set_boolean(value, s.densify); break;
   case PROP_DENSIFY_STEP: g_value_set_int(value, s.grid.step); break;
+  case PROP_EDGE_BAND: g_value_set_double(value, s.grid.edge_band); break;
+  case PROP_EDGE_STEP: g_value_set_int(value, s.grid.edge_step); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
 }
@@ -548,6 +559,18 @@ static void gst_stereo_depth_class_init(GstStereoDepthClass *klass)
               "sparse with densify: grid step in px; 0 = automatic, about 4000 grid points on "
               "the canopy",
               0, 1024, DensifyParams{}.step);
+  g_object_class_install_property(
+      gobject_class, PROP_EDGE_BAND,
+      g_param_spec_double("edge-band", "Edge band",
+                          "sparse with densify: also sample the mask every edge-step px within "
+                          "this fraction of the canopy box's height (width) of its top and "
+                          "bottom rows (left and right columns), where the canopy's 3D extremes "
+                          "are (treemetrics:extreme-points); 0 = off",
+                          0.0, 0.5, DensifyParams{}.edge_band, RW_PLAYING));
+  install_int(gobject_class, PROP_EDGE_STEP, "edge-step", "Edge step",
+              "sparse with densify: the edge bands' grid step in px; 0 = automatic, the view's "
+              "width / 648 and at least 2 (2 px at 1296 wide, 4 at 2592)",
+              0, 1024, DensifyParams{}.edge_step);
   g_object_class_install_property(
       gobject_class, PROP_POST_MESSAGES,
       g_param_spec_boolean("post-messages", "Post messages",

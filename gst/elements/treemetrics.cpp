@@ -14,7 +14,11 @@
  * the points where its ray touches the canopy; `round-canopy`: exact for a canopy that is a
  * solid of revolution about a vertical axis; see lib/include/treestereo/metrics.hpp), with
  * #treemetrics:round-limbs (default true) adding how far a rounded canopy reaches beyond each
- * limb point. Only points that project onto the silhouette count.
+ * limb point. Each edge then reaches at least as far as the #treemetrics:extreme-points th
+ * (default 6th) most extreme canopy point in its direction: the canopy's 3D extreme often
+ * belongs to a cluster behind the one that forms the silhouette's edge, whose extreme projects
+ * inside the silhouette (stereodepth's #stereodepth:edge-band samples those parts densely).
+ * Only points that project onto the silhouette count.
  *
  * When no canopy is found (the vegetation meta says none, no valid point falls on it) the
  * message carries `tree-present=false` and no other figure, and the meta's figures are all 0:
@@ -123,6 +127,7 @@ enum {
   PROP_SMOOTHING,
   PROP_EXTENT_METHOD,
   PROP_ROUND_LIMBS,
+  PROP_EXTREME_POINTS,
   PROP_POST_MESSAGES,
 };
 
@@ -133,6 +138,7 @@ struct Settings {
   double smoothing = DEFAULT_SMOOTHING;
   ExtentDepth extent = MetricsParams{}.extent_depth;
   bool round_limbs = MetricsParams{}.round_limbs;
+  guint extreme_points = guint(MetricsParams{}.extreme_points);
   bool post_messages = DEFAULT_POST_MESSAGES;
 };
 
@@ -237,6 +243,7 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
       p.n_bands = s.bands;
       p.extent_depth = s.extent;
       p.round_limbs = s.round_limbs;
+      p.extreme_points = int(s.extreme_points);
       const treestereo::gst::MappedSilhouette sil(&veg->views[LEFT]);
       m = compute_tree_metrics(sil.get(), points_of(pm), treestereo::gst::geometry_from_meta(gm),
                                p);
@@ -290,6 +297,7 @@ static void gst_tree_metrics_set_property(GObject *object, guint prop_id, const 
   case PROP_SMOOTHING: s.smoothing = g_value_get_double(value); break;
   case PROP_EXTENT_METHOD: s.extent = ExtentDepth(g_value_get_enum(value)); break;
   case PROP_ROUND_LIMBS: s.round_limbs = g_value_get_boolean(value); break;
+  case PROP_EXTREME_POINTS: s.extreme_points = g_value_get_uint(value); break;
   case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
@@ -306,6 +314,7 @@ static void gst_tree_metrics_get_property(GObject *object, guint prop_id, GValue
   case PROP_SMOOTHING: g_value_set_double(value, s.smoothing); break;
   case PROP_EXTENT_METHOD: g_value_set_enum(value, int(s.extent)); break;
   case PROP_ROUND_LIMBS: g_value_set_boolean(value, s.round_limbs); break;
+  case PROP_EXTREME_POINTS: g_value_set_uint(value, s.extreme_points); break;
   case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
@@ -360,6 +369,13 @@ static void gst_tree_metrics_class_init(GstTreeMetricsClass *klass)
                            "(the limb is not the extreme unless the ray is straight ahead), from "
                            "the curvature the edge points show; false = the limb points' extent",
                            MetricsParams{}.round_limbs, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_EXTREME_POINTS,
+      g_param_spec_uint("extreme-points", "Extreme points",
+                        "Each edge of height and width reaches at least as far as the n-th most "
+                        "extreme canopy point in its direction (clusters behind the silhouette's "
+                        "edge reach further in metres than it shows); 0 = the silhouette alone",
+                        0, 10000, guint(MetricsParams{}.extreme_points), RW_PLAYING));
   g_object_class_install_property(
       gobject_class, PROP_POST_MESSAGES,
       g_param_spec_boolean("post-messages", "Post messages",

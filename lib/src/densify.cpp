@@ -28,10 +28,12 @@ void check_input(const cv::Mat &left, const cv::Mat &right, const cv::Mat &mask,
                              std::to_string(left.cols) + "x" + std::to_string(left.rows));
   if (p.step < 0 || p.target_points < 1 || p.half_window < 1 || !(p.min_zncc <= 1.0) ||
       !(p.min_margin >= 0.0) || !(p.seed_percentile >= 0.0) || !(p.seed_percentile < 50.0) ||
-      !(p.search_margin_px >= 0.0) || p.min_seeds < 1)
+      !(p.search_margin_px >= 0.0) || p.min_seeds < 1 || !(p.edge_band >= 0.0) ||
+      !(p.edge_band <= 0.5) || p.edge_step < 0)
     throw std::runtime_error("densify: parameters out of range (step >= 0, target points >= 1, "
                              "half window >= 1, min zncc <= 1, margin >= 0, seed percentile in "
-                             "[0, 50), search margin >= 0, min seeds >= 1)");
+                             "[0, 50), search margin >= 0, min seeds >= 1, edge band in "
+                             "[0, 0.5], edge step >= 0)");
 }
 
 enum class Outcome { kKept, kFlat, kWeak, kAmbiguous, kInconsistent };
@@ -159,24 +161,41 @@ std::vector<StereoMatch> densify_matches(const cv::Mat &left, const cv::Mat &rig
   const cv::Mat M = mask_left(lroi);
   const int wlo = lo - shift, whi = hi - shift;
   // Grid phase in view coordinates (step/2 from the view's origin), so that the grid does not
-  // move with the canopy's box.
-  auto first = [&](int origin) {
-    const int g0 = s / 2;
-    int v = g0 + ((std::max(origin + h, g0) - g0 + s - 1) / s) * s;
-    return v - origin;
-  };
-  const int y0 = first(lroi.y), x0 = first(lroi.x);
-  const int n_rows = y0 < L.rows - h ? (L.rows - h - 1 - y0) / s + 1 : 0;
-  std::vector<std::vector<StereoMatch>> rows(static_cast<std::size_t>(n_rows));
+  // move with the canopy's box; the edge bands' finer grid has its phase there too.
+  const auto on_grid = [](int view_coord, int step) { return (view_coord - step / 2) % step == 0; };
+  const bool bands = p.edge_band > 0;
+  const int fs = p.edge_step > 0 ? p.edge_step : std::max(2, int(std::lround(left.cols / 648.0)));
+  st.edge_step = bands ? fs : 0;
+  // The bands in crop coordinates: rows [.., top_end) and [bottom_start, ..), columns likewise.
+  const int band_rows = int(std::ceil(p.edge_band * box.height));
+  const int band_cols = int(std::ceil(p.edge_band * box.width));
+  const int top_end = box.y - lroi.y + band_rows, bottom_start = box.br().y - lroi.y - band_rows;
+  const int left_end = box.x - lroi.x + band_cols, right_start = box.br().x - lroi.x - band_cols;
+  std::vector<int> grid_rows; // crop rows that hold grid points
+  for (int y = h; y < L.rows - h; ++y) {
+    const int vy = y + lroi.y;
+    if (on_grid(vy, s) || (bands && on_grid(vy, fs)))
+      grid_rows.push_back(y);
+  }
+  std::vector<std::vector<StereoMatch>> rows(grid_rows.size());
   std::vector<DensifyStats> row_stats(rows.size());
-  cv::parallel_for_(cv::Range(0, n_rows), [&](const cv::Range &r) {
+  cv::parallel_for_(cv::Range(0, int(grid_rows.size())), [&](const cv::Range &r) {
     Scratch scratch;
     for (int i = r.start; i < r.end; ++i) {
-      const int y = y0 + i * s;
+      const int y = grid_rows[std::size_t(i)];
+      const bool coarse_row = on_grid(y + lroi.y, s);
+      const bool fine_row = bands && on_grid(y + lroi.y, fs);
+      const bool band_row = fine_row && (y < top_end || y >= bottom_start);
       const uchar *m = M.ptr<uchar>(y);
       DensifyStats &rs = row_stats[std::size_t(i)];
-      for (int x = x0; x < L.cols - h; x += s) {
+      for (int x = h; x < L.cols - h; ++x) {
         if (!m[x])
+          continue;
+        const int vx = x + lroi.x;
+        const bool coarse = coarse_row && on_grid(vx, s);
+        const bool fine = fine_row && on_grid(vx, fs) &&
+                          (band_row || x < left_end || x >= right_start);
+        if (!coarse && !fine)
           continue;
         ++rs.grid;
         GridPoint g = match_grid_point(L, R, x, y, wlo, whi, p, scratch);

@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <functional>
 #include <array>
 #include <cmath>
 #include <stdexcept>
@@ -453,6 +454,40 @@ std::vector<Band> compute_bands(const MetricsParams &p, const RowExtents &e,
   return bands;
 }
 
+// MetricsParams::extreme_points: widens width and height so that each unclipped edge reaches
+// the n-th most extreme point's X (Y) when that lies beyond the silhouette's edge.
+void reach_extreme_points(const std::vector<CanopyPoint> &pts, const StereoGeometry &g,
+                          std::size_t n, const Clipped &clip, const Converter &c, const Slopes &s,
+                          TreeMetrics &m)
+{
+  const double fy = g.fy > 0 ? g.fy : g.fx;
+  std::vector<double> x(pts.size()), y(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    x[i] = (pts[i].u - g.cx[LEFT]) / g.fx * pts[i].z_mm;
+    y[i] = (pts[i].v - g.cy) / fy * pts[i].z_mm;
+  }
+  const auto nth = [n](std::vector<double> &v, bool lowest) {
+    const auto it = v.begin() + std::ptrdiff_t(n - 1);
+    if (lowest)
+      std::nth_element(v.begin(), it, v.end());
+    else
+      std::nth_element(v.begin(), it, v.end(), std::greater<double>());
+    return *it;
+  };
+  double left = c.x(s.left) - c.beyond[0], right = c.x(s.right) + c.beyond[1];
+  double top = c.y(s.top) - c.beyond[2], bottom = c.y(s.bottom) + c.beyond[3];
+  if (!clip.left)
+    left = std::min(left, nth(x, true));
+  if (!clip.right)
+    right = std::max(right, nth(x, false));
+  if (!clip.top)
+    top = std::min(top, nth(y, true));
+  if (!clip.bottom)
+    bottom = std::max(bottom, nth(y, false));
+  m.width_m = (right - left) * kMmToM;
+  m.height_m = (bottom - top) * kMmToM;
+}
+
 } // namespace
 
 TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point3> &points,
@@ -493,6 +528,8 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
   m.extent_depth_m = c.z_ext * kMmToM;
   m.width_m = (c.x(s.right) - c.x(s.left) + c.beyond[0] + c.beyond[1]) * kMmToM;
   m.height_m = (c.y(s.bottom) - c.y(s.top) + c.beyond[2] + c.beyond[3]) * kMmToM;
+  if (p.extreme_points > 0 && pts.size() >= std::size_t(p.extreme_points))
+    reach_extreme_points(pts, g, std::size_t(p.extreme_points), m.clipped, c, s, m);
 
   // Area and perimeter at the equivalent depth, so that area ~ width * height for a box.
   const double area_px = left.area_px > 0 ? left.area_px : double(cv::countNonZero(left.mask));

@@ -492,6 +492,18 @@ static std::vector<GstTreeStereoMatch> plane_matches(const DenseScene &s, int n)
   return m;
 }
 
+/* A frame of dense_scene() with its vegetation meta (canopy or none) and `seeds` as the
+ * matches meta. */
+static GstBuffer *seeded_frame(const DenseScene &s, const std::vector<GstTreeStereoMatch> &seeds,
+                               bool canopy)
+{
+  GstBuffer *in = dense_frame(s);
+  add_vegetation(in, s, canopy);
+  gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
+                                          seeds.data(), guint(seeds.size()));
+  return in;
+}
+
 GST_START_TEST(test_sparse_densify_grid_on_the_canopy)
 {
   const DenseScene s = dense_scene();
@@ -501,10 +513,7 @@ GST_START_TEST(test_sparse_densify_grid_on_the_canopy)
   gboolean densify = FALSE;
   g_object_get(r.h->element, "densify", &densify, NULL);
   fail_unless(densify, "densify is on by default");
-  GstBuffer *in = dense_frame(s);
-  add_vegetation(in, s, true);
-  gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
-                                          seeds.data(), guint(seeds.size()));
+  GstBuffer *in = seeded_frame(s, seeds, true);
   GstBuffer *out = gst_harness_push_and_pull(r.h, in);
   const GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(out);
   fail_unless(pm != nullptr);
@@ -521,12 +530,29 @@ GST_START_TEST(test_sparse_densify_grid_on_the_canopy)
     fail_unless_equals_int(pm->points[i].match_index, i);
     fail_unless(std::abs(pm->points[i].z - z_true) <= 1e-3 * z_true);
   }
+  /* the edge bands (default 0.04 of the box, every width / 648 px, at least 2) sample the
+   * extremes finer */
+  gdouble edge_band = 0;
+  gint edge_step = -1;
+  g_object_get(r.h->element, "edge-band", &edge_band, "edge-step", &edge_step, NULL);
+  fail_unless(edge_band == 0.04 && edge_step == 0, "edge-band %f, edge-step %d", edge_band,
+              edge_step);
+  const cv::Rect box = cv::boundingRect(s.mask);
+  const int fs = std::max(2, int(std::lround(s.g.w / 648.0))); /* automatic: width / 648, >= 2 */
+  const int band_rows = int(std::ceil(0.04 * box.height)), band_cols = int(std::ceil(0.04 * box.width));
+  const auto in_band = [&](int x, int y) {
+    return y < box.y + band_rows || y >= box.br().y - band_rows || x < box.x + band_cols ||
+           x >= box.br().x - band_cols;
+  };
+  guint n_band = 0;
   for (guint i = guint(seeds.size()); i < pm->n_points; i++) {
     const GstTreeStereoPoint &p = pm->points[i];
     const int x = int(p.match_index % s.g.w), y = int(p.match_index / s.g.w);
     fail_unless(s.mask.at<uchar>(y, x) != 0, "grid point %u off the mask", i);
-    fail_unless_equals_int(x % step, step / 2);
-    fail_unless_equals_int(y % step, step / 2);
+    const bool coarse = x % step == step / 2 && y % step == step / 2;
+    const bool fine = x % fs == fs / 2 && y % fs == fs / 2 && in_band(x, y);
+    fail_unless(coarse || fine, "grid point %u (%d, %d) on neither grid", i, x, y);
+    n_band += !coarse;
     fail_unless(p.valid);
     /* within 0.2 px of disparity (as lib's densify test), 0.56 % of depth here */
     fail_unless(std::abs(p.z - z_true) <= 0.2 / s.d * z_true, "grid point %u: Z %f, true %f", i,
@@ -536,6 +562,7 @@ GST_START_TEST(test_sparse_densify_grid_on_the_canopy)
     fail_unless(std::abs(p.y - (yl - s.g.cy) * p.z / s.g.f) <= 1e-3 * p.z);
   }
   fail_unless(near_rel(pm->stats.median_z_mm, z_true, 0.03 / s.d), "median %f", pm->stats.median_z_mm);
+  fail_unless(n_band > 0, "no point of the edge bands");
   gboolean dense = TRUE;
   GstTreeStereoDepthStats ms{};
   pop_depth_message(r.bus, &dense, &ms, nullptr);
@@ -544,12 +571,23 @@ GST_START_TEST(test_sparse_densify_grid_on_the_canopy)
   fail_unless_equals_int(ms.n_grid, n_grid);
   gst_buffer_unref(out);
 
+  /* edge-band=0: the even grid alone, the band points gone */
+  g_object_set(r.h->element, "edge-band", 0.0, NULL);
+  in = seeded_frame(s, seeds, true);
+  out = gst_harness_push_and_pull(r.h, in);
+  pm = gst_buffer_get_tree_stereo_points_meta(out);
+  fail_unless(pm != nullptr);
+  fail_unless_equals_int(pm->stats.n_grid, n_grid - n_band);
+  for (guint i = guint(seeds.size()); i < pm->n_points; i++) {
+    const int x = int(pm->points[i].match_index % s.g.w), y = int(pm->points[i].match_index / s.g.w);
+    fail_unless(x % step == step / 2 && y % step == step / 2, "(%d, %d) off the grid", x, y);
+  }
+  pop_depth_message(r.bus, &dense, &ms, nullptr);
+  gst_buffer_unref(out);
+
   /* densify=false: the matches' points alone, the pixels untouched */
   g_object_set(r.h->element, "densify", FALSE, "post-messages", FALSE, NULL);
-  in = dense_frame(s);
-  add_vegetation(in, s, true);
-  gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
-                                          seeds.data(), guint(seeds.size()));
+  in = seeded_frame(s, seeds, true);
   out = gst_harness_push_and_pull(r.h, in);
   pm = gst_buffer_get_tree_stereo_points_meta(out);
   fail_unless_equals_int(pm->n_points, seeds.size());
@@ -558,18 +596,12 @@ GST_START_TEST(test_sparse_densify_grid_on_the_canopy)
 
   /* densify-step=8 and no canopy in the vegetation meta: no grid points */
   g_object_set(r.h->element, "densify", TRUE, "densify-step", 8, NULL);
-  in = dense_frame(s);
-  add_vegetation(in, s, false);
-  gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
-                                          seeds.data(), guint(seeds.size()));
+  in = seeded_frame(s, seeds, false);
   out = gst_harness_push_and_pull(r.h, in);
   pm = gst_buffer_get_tree_stereo_points_meta(out);
   fail_unless_equals_int(pm->stats.n_grid, 0);
   gst_buffer_unref(out);
-  in = dense_frame(s);
-  add_vegetation(in, s, true);
-  gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_EUCLIDEAN, 100, 100,
-                                          seeds.data(), guint(seeds.size()));
+  in = seeded_frame(s, seeds, true);
   out = gst_harness_push_and_pull(r.h, in);
   pm = gst_buffer_get_tree_stereo_points_meta(out);
   fail_unless(pm->stats.n_grid > 0.8 * area / 64 && pm->stats.n_grid <= guint(area / 64 + 40));

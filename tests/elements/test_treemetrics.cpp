@@ -392,6 +392,39 @@ GST_START_TEST(test_round_limbs_property)
 }
 GST_END_TEST;
 
+/* Two flat clusters facing the camera: the nearer (z 1.8 m) forms the silhouette's top, the
+ * farther (z 2.4 m, beside it) reaches 50 mm higher but projects lower. extreme-points (default
+ * 6) reads the height from its points; 0 leaves the silhouette's (the nearer card's) top. */
+GST_START_TEST(test_extreme_points_property)
+{
+  const Caster two_cards = [](double tx, double ty) -> std::optional<double> {
+    const double cards[2][5] = {{-250, 250, -400, 100, 1800}, {150, 550, -450, -50, 2400}};
+    for (const auto &c : cards)
+      if (tx * c[4] >= c[0] && tx * c[4] <= c[1] && ty * c[4] >= c[2] && ty * c[4] <= c[3])
+        return c[4];
+    return std::nullopt;
+  };
+  const Scene s = cast(two_cards, 2);
+  const double height = 0.55;
+  double h[2];
+  for (int on = 0; on < 2; ++on) {
+    Rig r = rig_new(on ? "" : "extreme-points=0");
+    guint n = 0;
+    g_object_get(r.h->element, "extreme-points", &n, NULL);
+    fail_unless_equals_int(n, on ? 6 : 0);
+    GstBuffer *out = gst_harness_push_and_pull(r.h, frame(&s, &s, 0));
+    const GstTreeStereoMetrics &m = gst_buffer_get_tree_stereo_metrics_meta(out)->metrics;
+    fail_unless(m.tree_present);
+    h[on] = m.height_m;
+    gst_buffer_unref(out);
+    rig_free(r);
+  }
+  fail_unless(h[0] < 0.95 * height, "silhouette alone: height %f", h[0]);
+  fail_unless(std::abs(h[1] - height) < 0.01 * height, "height %f (silhouette alone %f)", h[1],
+              h[0]);
+}
+GST_END_TEST;
+
 GST_START_TEST(test_band_profile_of_a_stepped_canopy)
 {
   const Scene s = stepped();
@@ -596,6 +629,7 @@ static Suite *treemetrics_suite(void)
   suite_add_tcase(s, tc);
   tcase_add_test(tc, test_sphere_every_field_against_truth);
   tcase_add_test(tc, test_round_limbs_property);
+  tcase_add_test(tc, test_extreme_points_property);
   tcase_add_test(tc, test_band_profile_of_a_stepped_canopy);
   tcase_add_test(tc, test_smoothing_converges_and_resets_without_a_tree);
   tcase_add_test(tc, test_no_tree_cases);

@@ -117,6 +117,7 @@ TEST(Densify, EvenGridWithTheTrueDisparityOfBothLayers)
   const TwoLayers s = two_layers();
   DensifyParams p;
   p.step = 4;
+  p.edge_band = 0; // the even grid alone (EdgeBandsSampleTheExtremesFiner below)
   DensifyStats st;
   const std::vector<StereoMatch> m =
       densify_matches(s.left, s.right, s.mask, seeds_at({s.df, s.db}, 40), p, &st);
@@ -204,10 +205,77 @@ TEST(Densify, AutomaticStepGivesAboutTheTargetCount)
   const TwoLayers s = two_layers();
   DensifyParams p;
   p.target_points = 1200; // mask area 76800 px: step sqrt(64) = 8
+  p.edge_band = 0;
   DensifyStats st;
   densify_matches(s.left, s.right, s.mask, seeds_at({s.df, s.db}, 20), p, &st);
   EXPECT_EQ(st.step, 8);
   EXPECT_EQ(st.grid, std::size_t(40 * 30));
+}
+
+// The edge bands: every mask pixel on the fine grid (edge_step, phase edge_step / 2 from the
+// view's origin) within edge_band of the box's height (width) of its top and bottom rows (left
+// and right columns) is tried as well as the even grid, and matched as well.
+TEST(Densify, EdgeBandsSampleTheExtremesFiner)
+{
+  const TwoLayers s = two_layers(); // mask: x 60..379, y 30..269
+  DensifyParams p;
+  p.step = 8;
+  p.edge_band = 0.1; // 24 rows at the top and bottom, 32 columns at the left and right
+  p.edge_step = 2;
+  DensifyStats st;
+  const std::vector<StereoMatch> m =
+      densify_matches(s.left, s.right, s.mask, seeds_at({s.df, s.db}, 40), p, &st);
+  EXPECT_EQ(st.edge_step, 2);
+  const auto in_band = [](int x, int y) {
+    return y < 30 + 24 || y >= 270 - 24 || x < 60 + 32 || x >= 380 - 32;
+  };
+  // The grid points expected, counted here from the definition.
+  std::size_t coarse = 0, band = 0;
+  for (int y = 30; y < 270; ++y)
+    for (int x = 60; x < 380; ++x) {
+      const bool c = x % 8 == 4 && y % 8 == 4, f = x % 2 == 1 && y % 2 == 1 && in_band(x, y);
+      coarse += c;
+      band += f && !c;
+    }
+  EXPECT_EQ(coarse, std::size_t(40 * 30));
+  EXPECT_EQ(st.grid, coarse + band);
+  EXPECT_EQ(st.kept, m.size());
+
+  std::vector<double> band_err;
+  std::size_t band_interior = 0;
+  for (int y = 30; y < 270; ++y)
+    for (int x = 60; x < 380; ++x)
+      if (x % 2 == 1 && y % 2 == 1 && in_band(x, y) && window_on_one_layer(s, x, y, p.half_window))
+        ++band_interior;
+  for (const StereoMatch &g : m) {
+    const int x = int(g.xl), y = int(g.yl);
+    const bool c = x % 8 == 4 && y % 8 == 4, f = x % 2 == 1 && y % 2 == 1 && in_band(x, y);
+    ASSERT_TRUE(c || f) << "(" << x << ", " << y << ") on neither grid";
+    if (f && window_on_one_layer(s, x, y, p.half_window))
+      band_err.push_back(std::abs(g.disparity() - s.true_d(x, y)));
+  }
+  ASSERT_GT(band_interior, 1000u);
+  EXPECT_GE(band_err.size(), std::size_t(0.95 * double(band_interior)));
+  EXPECT_LT(median(band_err), 0.03);
+
+  // Automatic: the view's width / 648 (here 400 px: 0.6), but at least 2 px.
+  p.edge_step = 0;
+  densify_matches(s.left, s.right, s.mask, seeds_at({s.df, s.db}, 40), p, &st);
+  EXPECT_EQ(st.edge_step, 2);
+
+  // Off: the even grid alone.
+  p.edge_band = 0;
+  densify_matches(s.left, s.right, s.mask, seeds_at({s.df, s.db}, 40), p, &st);
+  EXPECT_EQ(st.grid, coarse);
+  EXPECT_EQ(st.edge_step, 0);
+
+  p.edge_band = 0.6;
+  EXPECT_THROW(densify_matches(s.left, s.right, s.mask, seeds_at({s.df}, 20), p),
+               std::runtime_error);
+  p.edge_band = 0.1;
+  p.edge_step = -1;
+  EXPECT_THROW(densify_matches(s.left, s.right, s.mask, seeds_at({s.df}, 20), p),
+               std::runtime_error);
 }
 
 TEST(Densify, ColourViewsAsTheirGreyAndFlatPatchesAreSkipped)

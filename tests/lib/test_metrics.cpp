@@ -194,6 +194,62 @@ TEST(Metrics, RoundLimbsReachTheExtremeBeyondTheLimb)
   EXPECT_LT(m.width_m, 0.6);
 }
 
+// Two clusters, as flat cards of leaves facing the camera: the nearer one forms the
+// silhouette's top, the farther one, beside and behind it, reaches 50 mm higher in metres but
+// projects lower (its top ray, -450 / 2400, is less steep than the nearer's, -400 / 1800). No
+// depth for the silhouette's top ray gives the farther cluster's top; its points do.
+TEST(Metrics, ExtremePointsReachAClusterBehindTheSilhouettesEdge)
+{
+  const StereoGeometry g = camera();
+  struct Card {
+    double x0, x1, y0, y1, z;
+  };
+  const std::vector<Card> cards = {{-250, 250, -400, 100, 1800}, {150, 550, -450, -50, 2400}};
+  const Caster two_cards = [&](const cv::Vec3d &r) -> std::optional<double> {
+    for (const Card &c : cards) // nearest first
+      if (r[0] * c.z >= c.x0 && r[0] * c.z <= c.x1 && r[1] * c.z >= c.y0 && r[1] * c.z <= c.y1)
+        return c.z;
+    return std::nullopt;
+  };
+  Scene s = cast(g, two_cards, 2);
+  const double height = (100.0 - -450.0) * 1e-3, width = (550.0 - -250.0) * 1e-3;
+  MetricsParams p;
+  ASSERT_EQ(p.extreme_points, 6);
+  const TreeMetrics m = compute_tree_metrics(s.sil, s.points, g, p);
+  p.extreme_points = 0;
+  const TreeMetrics sil = compute_tree_metrics(s.sil, s.points, g, p);
+  ASSERT_TRUE(m.tree_present && sil.tree_present);
+  std::printf("two clusters: height %.4f m (silhouette alone %.4f), truth %.4f; width %.4f "
+              "(%.4f), truth %.4f\n",
+              m.height_m, sil.height_m, height, m.width_m, sil.width_m, width);
+  EXPECT_LT(sil.height_m, height * 0.95); // the silhouette's top is the nearer card's
+  EXPECT_LT(rel(m.height_m, height), 0.01);
+  EXPECT_LT(rel(m.width_m, width), 0.01); // each side's edge is its own card's
+
+  // Five points at the silhouette's top matched at a background's disparity (as at a leaf's
+  // edge against the wall): the same pixels, 1.6 times the depth, so their Y reaches far above
+  // the canopy. The 6th most extreme point is still the canopy's; the most extreme is not.
+  std::vector<std::size_t> order(s.points.size());
+  for (std::size_t i = 0; i < order.size(); ++i)
+    order[i] = i;
+  std::partial_sort(order.begin(), order.begin() + 5, order.end(), [&](std::size_t a, std::size_t b) {
+    return s.points[a].y / s.points[a].z < s.points[b].y / s.points[b].z;
+  });
+  for (int i = 0; i < 5; ++i) {
+    Point3 q = s.points[order[std::size_t(i)]];
+    q.x *= 1.6f;
+    q.y *= 1.6f;
+    q.z *= 1.6f;
+    s.points.push_back(q);
+  }
+  p.extreme_points = 6;
+  const TreeMetrics robust = compute_tree_metrics(s.sil, s.points, g, p);
+  p.extreme_points = 1;
+  const TreeMetrics first = compute_tree_metrics(s.sil, s.points, g, p);
+  EXPECT_LT(rel(robust.height_m, height), 0.01);
+  EXPECT_GT(first.height_m, height * 1.05);
+}
+
 // The paper's depth noise (1.36 cm sd at ~2 m) and 300 points, like a frame of SIFT matches.
 TEST(Metrics, SphereWithPaperDepthNoise)
 {

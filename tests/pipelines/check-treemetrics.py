@@ -15,12 +15,11 @@ Two profiles (--profile):
     distance: the targets themselves over the frames: mean error (bias) <= 0.5% and standard
       deviation of the error <= 0.5 cm; and each frame within 1%;
     thickness: the target, each frame within 20%;
-    height, width: each frame within 5%: NOT the 1.5% target. The tangent-points model reads
-      the canopy's extreme on the silhouette's bounding ray, but on these union-of-clusters
-      canopies the 3D extreme is often a cluster behind the one that makes the silhouette's
-      edge (its projection is inside the silhouette): even with the true surface points the
-      model scatters by about 2% per frame (docs/results.md). The root mean square error is
-      printed for the record.
+    height, width: the 1.5% target as the root mean square error over the frames, and each
+      frame within 3%. Per frame the target is not met on every tree: the canopy's 3D extreme
+      can be a part no camera position in front of the tree sees (a cluster's far side), and
+      what treemetrics reads from the silhouette's edges and the points' extremes scatters by
+      about 1.2-1.4% from tree to tree (docs/results.md).
 A frame whose canopy touches the image's left or right border (clipped) has a width that is only
 a lower bound, and one touching the top or bottom a height that is: those are checked to stay
 below truth * (1 + tolerance) and above zero, not to reach the truth.
@@ -31,7 +30,7 @@ import math
 import re
 
 tolerances = {'jpeg640': {'distance': 0.015, 'height': 0.06, 'width': 0.06, 'thickness': 0.25},
-              'sweep1296': {'distance': 0.01, 'height': 0.05, 'width': 0.05, 'thickness': 0.20}}
+              'sweep1296': {'distance': 0.01, 'height': 0.03, 'width': 0.03, 'thickness': 0.20}}
 ap = argparse.ArgumentParser()
 ap.add_argument('log')
 ap.add_argument('truth')
@@ -86,8 +85,12 @@ if profile == 'sweep1296' and len(dist_err_cm) >= 2:
     rms = {k: math.sqrt(sum(e * e for e in rel_err[k]) / len(rel_err[k]))
            for k in ('height', 'width') if rel_err.get(k)}
     print('distance bias %+.2f%% (target 0.5%%), std %.2f cm (target 0.5 cm); rms height %.2f%%, '
-          'width %.2f%% (target 1.5%%, not checked)'
+          'width %.2f%% (target 1.5%%)'
           % (100 * bias, std_cm, 100 * rms.get('height', 0), 100 * rms.get('width', 0)))
+    for k, v in rms.items():
+        if v > 0.015:
+            errors.append('%s: root mean square error %.2f%% over the frames, target 1.5%%'
+                          % (k, 100 * v))
     if abs(bias) > 0.005:
         errors.append('distance bias %+.2f%% over the frames, target 0.5%%' % (100 * bias))
     if std_cm > 0.5:
