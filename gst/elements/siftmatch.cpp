@@ -31,6 +31,8 @@
  * part of the window at the refined disparity (#siftmatch:layer-min-zncc,
  * #siftmatch:layer-centre-min-zncc). On 24 treetestsrc pairs at 1.8/2.2 m they take the correct
  * rate from 99.2-99.7% to 99.55-99.91% for 5-6% fewer matches, Jadeplant from 96.7% to 97.9%.
+ * The refinement's windows (7x7, #siftmatch:layer-window) are sized for a detection scale of 0.5
+ * or more and grow by 0.5 / scale below it (13x13 and 21x21 at 2592x1944).
  *
  * A buffer without the geometry meta, or a stream that is not side by side, is an error.
  *
@@ -729,8 +731,9 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
   g_object_class_install_property(
       gobject_class, PROP_LAYER_WINDOW,
       g_param_spec_int("layer-window", "Layer window",
-                       "Two-layer test: half size of its window (px at full resolution; "
-                       "5 = 11x11, quadrants of 6x6)",
+                       "Two-layer test: half size of its window (px at full resolution for a "
+                       "detection scale >= 0.5, times 0.5 / scale below it; 5 = 11x11, "
+                       "quadrants of 6x6)",
                        1, 32, DEFAULT_LAYER_WINDOW, PROP_FLAGS));
   g_object_class_install_property(
       gobject_class, PROP_LAYER_SEARCH,

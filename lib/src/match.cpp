@@ -320,12 +320,24 @@ double ms_since(std::chrono::steady_clock::time_point t0)
 }
 } // namespace
 
+RefineParams refine_params_for_scale(const RefineParams &params, double detect_scale)
+{
+  RefineParams p = params;
+  if (detect_scale > 0 && detect_scale < 0.5) {
+    const double k = 0.5 / detect_scale;
+    p.half_window = int(std::lround(params.half_window * k));
+    p.layer_half_window = int(std::lround(params.layer_half_window * k));
+  }
+  return p;
+}
+
 StereoMatcher::StereoMatcher(const MatchParams &params)
-    : params_(params), detector_{FeatureDetector(params.detect), FeatureDetector(params.detect)},
+    : params_(params), refine_(refine_params_for_scale(params.refine_params, params.detect.scale)),
+      detector_{FeatureDetector(params.detect), FeatureDetector(params.detect)},
       matcher_(make_matcher(params.matcher)),
       worker_(params.parallel_detect ? std::make_unique<Worker>() : nullptr)
 {
-  check_refine_params(params.refine_params);
+  check_refine_params(refine_);
 }
 
 StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,
@@ -368,7 +380,7 @@ StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,
 
   if (params_.refine) {
     t0 = std::chrono::steady_clock::now();
-    res.stats.rejected_refine = refine_matches(gl, gr, res.matches, params_.refine_params);
+    res.stats.rejected_refine = refine_matches(gl, gr, res.matches, refine_);
     res.stats.refine_ms = ms_since(t0);
   }
   res.stats.matches = res.matches.size();

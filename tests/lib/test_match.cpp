@@ -561,6 +561,28 @@ TEST(Refine, RejectsInvalidFilterParameters)
   bad([](RefineParams &p) { p.min_zncc_drop = std::nan(""); });
 }
 
+// The refinement windows follow the detection scale below 0.5 (a 2592 px wide view detected at
+// 0.25 gets the windows a 1296 px view has at 0.5, in full-resolution pixels: twice as wide).
+TEST(Refine, WindowsGrowBelowDetectionScaleOneHalf)
+{
+  RefineParams p;
+  p.half_window = 3;
+  p.layer_half_window = 5;
+  p.search = 2;
+  p.layer_tolerance = 0.5;
+  for (double s : {1.0, 0.5}) {
+    const RefineParams q = refine_params_for_scale(p, s);
+    EXPECT_EQ(q.half_window, 3);
+    EXPECT_EQ(q.layer_half_window, 5);
+  }
+  const RefineParams q = refine_params_for_scale(p, 0.25);
+  EXPECT_EQ(q.half_window, 6);
+  EXPECT_EQ(q.layer_half_window, 10);
+  EXPECT_EQ(q.search, 2);              // the search and the tolerances stay
+  EXPECT_EQ(q.layer_tolerance, 0.5);
+  EXPECT_EQ(refine_params_for_scale(p, 0.125).half_window, 12);
+}
+
 TEST(Middlebury, PfmAndCalibRoundTrip)
 {
   const std::string dir = ::testing::TempDir();

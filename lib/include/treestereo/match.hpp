@@ -169,11 +169,19 @@ void check_refine_params(const RefineParams &params);
 std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
                            std::vector<StereoMatch> &matches, const RefineParams &params);
 
+// The refinement windows for detection at `detect_scale`: half_window and layer_half_window as
+// given for a scale of 0.5 or more, and 0.5 / detect_scale times as large below it. A keypoint
+// found at scale 0.25 (2592x1944 views) stands for twice as many full-resolution pixels as one
+// found at 0.5 (1296x972), and a 7x7 patch there holds half the texture: 2592x1944 pairs kept
+// 15-29 matches in dim light (light 0.7) with 7x7 and 11x11 windows and 26-42 with 13x13 and
+// 21x21, with 3 wrong of 718 (12 pairs, docs/results.md "Fourth round").
+RefineParams refine_params_for_scale(const RefineParams &params, double detect_scale);
+
 struct MatchParams {
   DetectParams detect;
   MatcherParams matcher;
   bool refine = true;
-  RefineParams refine_params;
+  RefineParams refine_params; // windows for a detection scale >= 0.5 (refine_params_for_scale)
   bool parallel_detect = true; // detect the two views concurrently
 };
 
@@ -194,6 +202,7 @@ public:
 
 private:
   MatchParams params_;
+  RefineParams refine_; // params_.refine_params for the detection scale
   FeatureDetector detector_[2];
   std::unique_ptr<Matcher> matcher_;
   std::unique_ptr<Worker> worker_; // detects the right view when parallel_detect
