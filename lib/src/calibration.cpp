@@ -126,6 +126,43 @@ std::size_t inconsistent_yaml_indent(const std::string &text)
   return 0;
 }
 
+// A calibration file's root is a map, so in YAML every line at column 0 (after the %YAML
+// directive) is a key ("name:" or "name: value"), the document marker "---" or its end "...",
+// or a comment. OpenCV 4.6's YAML parser loops forever on some other column-0 text
+// (fuzz-calibration's second find: "%YAML:1.0\n----~\n~\n-"), so such text is refused before it
+// reaches the parser. Returns the 1-based line number of the first such line, 0 when there is
+// none (and for XML or JSON, left to OpenCV).
+std::size_t stray_top_level_yaml_line(const std::string &text)
+{
+  const std::size_t first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && (text[first] == '<' || text[first] == '{'))
+    return 0;
+  std::size_t line_no = 0;
+  bool seen_content = false;
+  for (std::size_t pos = 0; pos <= text.size();) {
+    const std::size_t end = std::min(text.find('\n', pos), text.size());
+    ++line_no;
+    std::string line = text.substr(pos, end - pos);
+    pos = end + 1;
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t'))
+      line.pop_back();
+    if (line.empty() || line[0] == ' ' || line[0] == '#')
+      continue; // blank, indented (inside a key's value) or a comment
+    const bool directive = !seen_content && line[0] == '%';
+    seen_content = true;
+    if (directive || line == "---" || line.compare(0, 4, "--- ") == 0 || line == "...")
+      continue;
+    const unsigned char c = static_cast<unsigned char>(line[0]);
+    const std::size_t colon = line.find(':');
+    const bool key = (std::isalpha(c) || c == '_' || c == '"' || c == '\'') &&
+                     colon != std::string::npos &&
+                     (colon + 1 == line.size() || line[colon + 1] == ' ');
+    if (!key)
+      return line_no;
+  }
+  return 0;
+}
+
 // Opens a FileStorage for reading; a syntax error becomes a CalibrationError naming the file.
 cv::FileStorage open_for_reading(const std::string &file)
 {
@@ -135,6 +172,11 @@ cv::FileStorage open_for_reading(const std::string &file)
     throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (line " +
                                          std::to_string(bad) +
                                          " is indented to a column no enclosing line has)");
+  if (const std::size_t bad = gz ? 0 : stray_top_level_yaml_line(text))
+    throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (line " +
+                                         std::to_string(bad) +
+                                         " starts at column 0 but is no key: a calibration "
+                                         "file's top level is a map of 'name: value' lines)");
   cv::FileStorage fs;
   try {
     if (gz)

@@ -377,6 +377,13 @@ TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
   write_text(dir.file("hang.yml"), "%YAML:1.0\n   rows: 1\n A---\nx");
   expect_error([&] { load_calibration(dir.file("hang.yml")); }, "hang.yml", "",
                "line 3 is indented to a column no enclosing line has");
+  // Its second find: the parser loops forever on these column-0 lines, which are no keys.
+  write_text(dir.file("hang2.yaml"), "----~\n~\n-");
+  expect_error([&] { load_calibration(dir.file("hang2.yaml")); }, "hang2.yaml", "",
+               "line 1 starts at column 0 but is no key");
+  write_text(dir.file("hang3.yml"), "%YAML:1.0\n---\nimage_width: 640\n~\n-");
+  expect_error([&] { load_calibration(dir.file("hang3.yml")); }, "hang3.yml", "",
+               "line 4 starts at column 0 but is no key");
 }
 
 TEST(Calibration, ScalesOnlyByAPureScale)
