@@ -94,49 +94,22 @@ std::string with_opencv_yaml_header(const std::string &text)
   return "%YAML:1.0\n" + body;
 }
 
-// YAML's block indentation: a line that dedents must come back to the column of an enclosing
-// level. OpenCV 4.6's own YAML parser loops forever on some lines that dedent to a column in
-// between (found by fuzz-calibration: "%YAML:1.0\n   rows: 1\n A---\nx"), so such text is refused
-// before it reaches the parser. XML and JSON are left to OpenCV. Returns the 1-based line number
-// of the first bad line, 0 when the indentation is consistent.
-std::size_t inconsistent_yaml_indent(const std::string &text)
+// OpenCV 4.6's own YAML parser loops forever on some malformed text, so YAML is checked here
+// before it reaches the parser, and text with either of these problems is refused (XML and
+// JSON are left to OpenCV). Returns what is wrong with the first bad line ("line N ..."), or
+// an empty string.
+// - Block indentation: a line that dedents must come back to the column of an enclosing level
+//   (fuzz-calibration's first find: "%YAML:1.0\n   rows: 1\n A---\nx", a dedent to a column
+//   between two levels).
+// - The top level: a calibration file's root is a map, so every line at column 0 is a key
+//   ("name:" or "name: value"), the document marker "---" or "...", a comment, or the leading
+//   %YAML directive (its second find: "%YAML:1.0\n----~\n~\n-").
+std::string yaml_problem(const std::string &text)
 {
   const std::size_t first = text.find_first_not_of(" \t\r\n");
   if (first != std::string::npos && (text[first] == '<' || text[first] == '{'))
-    return 0;
+    return "";
   std::vector<std::size_t> levels{0};
-  std::size_t line_no = 0;
-  for (std::size_t pos = 0; pos <= text.size();) {
-    const std::size_t end = std::min(text.find('\n', pos), text.size());
-    ++line_no;
-    const std::size_t indent = std::min(text.find_first_not_of(' ', pos), end) - pos;
-    const bool blank = pos + indent >= end || text[pos + indent] == '\r' || text[pos + indent] == '#';
-    if (!blank) {
-      if (indent > levels.back()) {
-        levels.push_back(indent);
-      } else {
-        while (levels.back() > indent)
-          levels.pop_back();
-        if (levels.back() != indent)
-          return line_no;
-      }
-    }
-    pos = end + 1;
-  }
-  return 0;
-}
-
-// A calibration file's root is a map, so in YAML every line at column 0 (after the %YAML
-// directive) is a key ("name:" or "name: value"), the document marker "---" or its end "...",
-// or a comment. OpenCV 4.6's YAML parser loops forever on some other column-0 text
-// (fuzz-calibration's second find: "%YAML:1.0\n----~\n~\n-"), so such text is refused before it
-// reaches the parser. Returns the 1-based line number of the first such line, 0 when there is
-// none (and for XML or JSON, left to OpenCV).
-std::size_t stray_top_level_yaml_line(const std::string &text)
-{
-  const std::size_t first = text.find_first_not_of(" \t\r\n");
-  if (first != std::string::npos && (text[first] == '<' || text[first] == '{'))
-    return 0;
   std::size_t line_no = 0;
   bool seen_content = false;
   for (std::size_t pos = 0; pos <= text.size();) {
@@ -146,8 +119,19 @@ std::size_t stray_top_level_yaml_line(const std::string &text)
     pos = end + 1;
     while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t'))
       line.pop_back();
-    if (line.empty() || line[0] == ' ' || line[0] == '#')
-      continue; // blank, indented (inside a key's value) or a comment
+    const std::size_t indent = line.find_first_not_of(' ');
+    if (indent == std::string::npos || line[indent] == '#')
+      continue; // blank or a comment
+    if (indent > levels.back()) {
+      levels.push_back(indent);
+    } else {
+      while (levels.back() > indent)
+        levels.pop_back();
+      if (levels.back() != indent)
+        return "line " + std::to_string(line_no) + " is indented to a column no enclosing line has";
+    }
+    if (indent > 0)
+      continue; // inside a key's value
     const bool directive = !seen_content && line[0] == '%';
     seen_content = true;
     if (directive || line == "---" || line.compare(0, 4, "--- ") == 0 || line == "...")
@@ -158,9 +142,11 @@ std::size_t stray_top_level_yaml_line(const std::string &text)
                      colon != std::string::npos &&
                      (colon + 1 == line.size() || line[colon + 1] == ' ');
     if (!key)
-      return line_no;
+      return "line " + std::to_string(line_no) +
+             " starts at column 0 but is no key: a calibration file's top level is a map of "
+             "'name: value' lines";
   }
-  return 0;
+  return "";
 }
 
 // Opens a FileStorage for reading; a syntax error becomes a CalibrationError naming the file.
@@ -168,15 +154,8 @@ cv::FileStorage open_for_reading(const std::string &file)
 {
   const std::string text = read_checked(file);
   const bool gz = ends_with(lower(file), ".gz");
-  if (const std::size_t bad = gz ? 0 : inconsistent_yaml_indent(text))
-    throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (line " +
-                                         std::to_string(bad) +
-                                         " is indented to a column no enclosing line has)");
-  if (const std::size_t bad = gz ? 0 : stray_top_level_yaml_line(text))
-    throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (line " +
-                                         std::to_string(bad) +
-                                         " starts at column 0 but is no key: a calibration "
-                                         "file's top level is a map of 'name: value' lines)");
+  if (const std::string bad = gz ? std::string() : yaml_problem(text); !bad.empty())
+    throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (" + bad + ")");
   cv::FileStorage fs;
   try {
     if (gz)
