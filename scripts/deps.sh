@@ -7,7 +7,7 @@ packages=(
   # build
   meson ninja-build pkg-config g++ python3
   libglib2.0-dev libgstreamer1.0-dev libgstreamer-plugins-base1.0-dev
-  libopencv-dev
+  libopencv-dev zlib1g-dev
   libaravis-dev libusb-1.0-0-dev
   libgtest-dev
   # run: gst-launch/gst-inspect and the stock elements the pipelines use

@@ -3,6 +3,8 @@
 
 #include <opencv2/core.hpp>
 
+#include <zlib.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -51,9 +53,12 @@ std::string trim(const std::string &s)
   return s.substr(b, e - b + 1);
 }
 
-// Reads the start of the file. It must exist and be readable, and must not be some other kind
-// of file: FileStorage's own error for a PNG ("input file is invalid") would not tell the
-// person what went wrong.
+// Calibration files are a few kB; a larger one (or a gzip bomb) is something else.
+constexpr std::size_t kMaxCalibrationBytes = std::size_t(16) << 20;
+
+// Reads the file (decompressed when it ends in .gz). It must exist and be readable, and must not
+// be some other kind of file: FileStorage's own error for a PNG ("input file is invalid") would
+// not tell the person what went wrong.
 std::string read_checked(const std::string &file)
 {
   // An ifstream opens a directory without complaint and then reads nothing, which would be
@@ -61,16 +66,34 @@ std::string read_checked(const std::string &file)
   std::error_code ec;
   if (std::filesystem::is_directory(file, ec))
     throw CalibrationError(file, "", "is a directory, not a calibration file");
-  std::ifstream in(file, std::ios::binary);
-  if (!in)
-    throw CalibrationError(file, "", "file is missing or cannot be read");
-  std::ostringstream buf;
-  buf << in.rdbuf();
-  const std::string text = buf.str();
+  std::string text;
+  if (ends_with(lower(file), ".gz")) {
+    // Decompressed here (zlib reads an uncompressed file as it is, as OpenCV does), so that a
+    // compressed file gets the same checks as a plain one before OpenCV's parser sees it.
+    gzFile gz = gzopen(file.c_str(), "rb");
+    if (!gz)
+      throw CalibrationError(file, "", "file is missing or cannot be read");
+    char buf[16384];
+    int n = 0;
+    while ((n = gzread(gz, buf, sizeof buf)) > 0 && text.size() <= kMaxCalibrationBytes)
+      text.append(buf, std::size_t(n));
+    int err = Z_OK;
+    const std::string zmsg = gzerror(gz, &err); // a truncated stream ends "at EOF" with an error
+    gzclose(gz);
+    if (n < 0 || (err != Z_OK && err != Z_STREAM_END))
+      throw CalibrationError(file, "", "not a valid gzip file (" + zmsg + ")");
+  } else {
+    std::ifstream in(file, std::ios::binary);
+    if (!in)
+      throw CalibrationError(file, "", "file is missing or cannot be read");
+    std::ostringstream buf;
+    buf << in.rdbuf();
+    text = buf.str();
+  }
+  if (text.size() > kMaxCalibrationBytes)
+    throw CalibrationError(file, "", "larger than 16 MiB: not a calibration file");
   if (text.empty())
     throw CalibrationError(file, "", "file is empty: expected an OpenCV YAML/XML calibration");
-  if (ends_with(lower(file), ".gz"))
-    return text; // compressed: FileStorage decides
   if (text.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0 || text.compare(0, 3, "\xff\xd8\xff") == 0)
     throw CalibrationError(file, "", "this is an image, not a calibration file (expected OpenCV "
                                      "YAML/XML with M1 D1 M2 D2 R T, or 'left.yaml;right.yaml')");
@@ -153,15 +176,11 @@ std::string yaml_problem(const std::string &text)
 cv::FileStorage open_for_reading(const std::string &file)
 {
   const std::string text = read_checked(file);
-  const bool gz = ends_with(lower(file), ".gz");
-  if (const std::string bad = gz ? std::string() : yaml_problem(text); !bad.empty())
+  if (const std::string bad = yaml_problem(text); !bad.empty())
     throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (" + bad + ")");
   cv::FileStorage fs;
   try {
-    if (gz)
-      fs.open(file, cv::FileStorage::READ);
-    else
-      fs.open(with_opencv_yaml_header(text), cv::FileStorage::READ | cv::FileStorage::MEMORY);
+    fs.open(with_opencv_yaml_header(text), cv::FileStorage::READ | cv::FileStorage::MEMORY);
   } catch (const cv::Exception &e) {
     throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (" + trim(e.err) + ")");
   }

@@ -168,7 +168,7 @@ TEST(Calibration, ReadsOpenCvLayoutYamlAndXml)
   TempDir dir;
   StereoCalibration rig = make_rig();
   add_rectification(rig);
-  for (const char *name : {"stereo.yml", "stereo.xml", "stereo.yaml.gz"}) {
+  for (const char *name : {"stereo.yml", "stereo.xml", "stereo.yaml.gz", "stereo.xml.gz"}) {
     write_opencv(dir.file(name), rig);
     const StereoCalibration c = load_calibration(dir.file(name));
     expect_same(c, rig, 1e-12);
@@ -384,6 +384,14 @@ TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
   write_text(dir.file("hang3.yml"), "%YAML:1.0\n---\nimage_width: 640\n~\n-");
   expect_error([&] { load_calibration(dir.file("hang3.yml")); }, "hang3.yml", "",
                "line 4 starts at column 0 but is no key");
+  // Its third: the first one again in a file named .gz (zlib reads plain text as it is), which
+  // went to OpenCV unchecked. Compressed files are decompressed and checked like plain ones.
+  write_text(dir.file("hang4.yml.gz"), "%YAML:1.0\n   rows: 1\n A---\nx");
+  expect_error([&] { load_calibration(dir.file("hang4.yml.gz")); }, "hang4.yml.gz", "",
+               "line 3 is indented to a column no enclosing line has");
+  write_text(dir.file("cut.yml.gz"), std::string("\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\x03\xcb", 11));
+  expect_error([&] { load_calibration(dir.file("cut.yml.gz")); }, "cut.yml.gz", "",
+               "not a valid gzip file");
 }
 
 TEST(Calibration, ScalesOnlyByAPureScale)
