@@ -5,9 +5,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
-#include <functional>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 #include <string>
 
@@ -454,11 +454,11 @@ std::vector<Band> compute_bands(const MetricsParams &p, const RowExtents &e,
   return bands;
 }
 
-// MetricsParams::extreme_points: widens width and height so that each unclipped edge reaches
-// the n-th most extreme point's X (Y) when that lies beyond the silhouette's edge.
+// MetricsParams::extreme_points: moves each unclipped edge (mm: left/right X, top/bottom Y) out to
+// the n-th most extreme point's X (Y) when that lies beyond it.
 void reach_extreme_points(const std::vector<CanopyPoint> &pts, const StereoGeometry &g,
-                          std::size_t n, const Clipped &clip, const Converter &c, const Slopes &s,
-                          TreeMetrics &m)
+                          std::size_t n, const Clipped &clip, double &left, double &right,
+                          double &top, double &bottom)
 {
   const double fy = g.fy > 0 ? g.fy : g.fx;
   std::vector<double> x(pts.size()), y(pts.size());
@@ -474,8 +474,6 @@ void reach_extreme_points(const std::vector<CanopyPoint> &pts, const StereoGeome
       std::nth_element(v.begin(), it, v.end(), std::greater<double>());
     return *it;
   };
-  double left = c.x(s.left) - c.beyond[0], right = c.x(s.right) + c.beyond[1];
-  double top = c.y(s.top) - c.beyond[2], bottom = c.y(s.bottom) + c.beyond[3];
   if (!clip.left)
     left = std::min(left, nth(x, true));
   if (!clip.right)
@@ -484,8 +482,6 @@ void reach_extreme_points(const std::vector<CanopyPoint> &pts, const StereoGeome
     top = std::min(top, nth(y, true));
   if (!clip.bottom)
     bottom = std::max(bottom, nth(y, false));
-  m.width_m = (right - left) * kMmToM;
-  m.height_m = (bottom - top) * kMmToM;
 }
 
 } // namespace
@@ -526,10 +522,14 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
     m.thickness_m = (depth.p95 - depth.p05) * kMmToM;
   }
   m.extent_depth_m = c.z_ext * kMmToM;
-  m.width_m = (c.x(s.right) - c.x(s.left) + c.beyond[0] + c.beyond[1]) * kMmToM;
-  m.height_m = (c.y(s.bottom) - c.y(s.top) + c.beyond[2] + c.beyond[3]) * kMmToM;
+  // The extent's edges (mm): the silhouette's, each past its limb by what round_limbs adds.
+  double x_left = c.x(s.left) - c.beyond[0], x_right = c.x(s.right) + c.beyond[1];
+  double y_top = c.y(s.top) - c.beyond[2], y_bottom = c.y(s.bottom) + c.beyond[3];
   if (p.extreme_points > 0 && pts.size() >= std::size_t(p.extreme_points))
-    reach_extreme_points(pts, g, std::size_t(p.extreme_points), m.clipped, c, s, m);
+    reach_extreme_points(pts, g, std::size_t(p.extreme_points), m.clipped, x_left, x_right,
+                         y_top, y_bottom);
+  m.width_m = (x_right - x_left) * kMmToM;
+  m.height_m = (y_bottom - y_top) * kMmToM;
 
   // Area and perimeter at the equivalent depth, so that area ~ width * height for a box.
   const double area_px = left.area_px > 0 ? left.area_px : double(cv::countNonZero(left.mask));

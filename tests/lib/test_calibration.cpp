@@ -372,23 +372,27 @@ TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
   expect_error([&] { load_calibration(dir.file("broken.yml")); }, "broken.yml", "", "not a valid OpenCV");
   write_text(dir.file("broken.xml"), "<?xml version=\"1.0\"?>\n<opencv_storage>\n<M1 type_id=\"opencv-matrix\">\n");
   expect_error([&] { load_calibration(dir.file("broken.xml")); }, "broken.xml", "", "not a valid OpenCV");
-  // fuzz-calibration's find: OpenCV 4.6's YAML parser loops forever on this dedent to column 1
-  // (between the levels at 0 and 3); it is refused before the parser sees it.
-  write_text(dir.file("hang.yml"), "%YAML:1.0\n   rows: 1\n A---\nx");
-  expect_error([&] { load_calibration(dir.file("hang.yml")); }, "hang.yml", "",
-               "line 3 is indented to a column no enclosing line has");
-  // Its second find: the parser loops forever on these column-0 lines, which are no keys.
-  write_text(dir.file("hang2.yaml"), "----~\n~\n-");
-  expect_error([&] { load_calibration(dir.file("hang2.yaml")); }, "hang2.yaml", "",
-               "line 1 starts at column 0 but is no key");
-  write_text(dir.file("hang3.yml"), "%YAML:1.0\n---\nimage_width: 640\n~\n-");
-  expect_error([&] { load_calibration(dir.file("hang3.yml")); }, "hang3.yml", "",
-               "line 4 starts at column 0 but is no key");
-  // Its third: the first one again in a file named .gz (zlib reads plain text as it is), which
-  // went to OpenCV unchecked. Compressed files are decompressed and checked like plain ones.
-  write_text(dir.file("hang4.yml.gz"), "%YAML:1.0\n   rows: 1\n A---\nx");
-  expect_error([&] { load_calibration(dir.file("hang4.yml.gz")); }, "hang4.yml.gz", "",
-               "line 3 is indented to a column no enclosing line has");
+  // fuzz-calibration's finds: OpenCV 4.6's YAML parser loops forever on each of these, so they
+  // are refused before the parser sees them.
+  const struct {
+    const char *name, *text, *why;
+  } hangs[] = {
+      // a dedent to column 1, between the levels at 0 and 3
+      {"hang.yml", "%YAML:1.0\n   rows: 1\n A---\nx",
+       "line 3 is indented to a column no enclosing line has"},
+      // column-0 lines that are no keys
+      {"hang2.yaml", "----~\n~\n-", "line 1 starts at column 0 but is no key"},
+      {"hang3.yml", "%YAML:1.0\n---\nimage_width: 640\n~\n-",
+       "line 4 starts at column 0 but is no key"},
+      // the first again in a file named .gz (zlib reads plain text as it is), which went to
+      // OpenCV unchecked: compressed files are decompressed and checked like plain ones
+      {"hang4.yml.gz", "%YAML:1.0\n   rows: 1\n A---\nx",
+       "line 3 is indented to a column no enclosing line has"},
+  };
+  for (const auto &h : hangs) {
+    write_text(dir.file(h.name), h.text);
+    expect_error([&] { load_calibration(dir.file(h.name)); }, h.name, "", h.why);
+  }
   write_text(dir.file("cut.yml.gz"), std::string("\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\x03\xcb", 11));
   expect_error([&] { load_calibration(dir.file("cut.yml.gz")); }, "cut.yml.gz", "",
                "not a valid gzip file");

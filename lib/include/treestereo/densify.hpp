@@ -49,8 +49,8 @@ struct DensifyParams {
   // 2592x1944, the same angle from 1296 px up; not 1 px, where the 7x7 patches of neighbouring
   // points overlap so much that one patch matched wrong gives several wrong points, enough to
   // move treemetrics' extreme-points: 640x480 read +3.4 % high on a tree with 1 px, -1.1 % with
-  // 2 px). edge_band 0 = off. On the synthetic orchard
-  // at 1296x972 (0.04 and 2 px) it adds about 3000 grid points to the 4000 of the even grid.
+  // 2 px). edge_band 0 = off. On the synthetic orchard at 1296x972 (0.04 and 2 px) it adds
+  // about 3000 grid points to the 4000 of the even grid.
   double edge_band = 0.04;
   int edge_step = 0;
   // Where R, G and B sit in the views' pixels (3 or 4 channels; ignored for grey views). Only
