@@ -9,12 +9,17 @@
 // Middlebury Jadeplant before/after, and timing rows.
 //
 //   bench-match-scene [--seeds 1,2,3] [--distances 1.8,2.2] [--size 1296x972] [--runs 3]
-//                     [--only table,errors,row,jadeplant,timing] [--set key=value,...] [--data DIR]
+//                     [--only table,errors,row,jadeplant,timing,step] [--set key=value,...]
+//                     [--mask] [--data DIR]
 //
 // --set changes the settings of the "two-layer test on" rows (keys: min-zncc, min-zncc-drop,
 // layer-tolerance, layer-half-window, layer-search, layer-centre-tolerance, layer-min-zncc,
-// layer-centre-min-zncc, half-window, search, scale, nfeatures, contrast-threshold, ratio,
-// epipolar-tolerance, mutual), to explore other values.
+// layer-centre-min-zncc, half-window, search, scale, nfeatures, contrast-threshold, mask-inset,
+// ratio, epipolar-tolerance, mutual), to explore other values. --mask: the row and errors modes
+// detect inside each view's rendered canopy mask, as siftmatch does behind exgsegment (default:
+// whole views, as Table 1). --only step runs just the siftmatch step on the timing pair (1296x972,
+// canopy mask) --runs times on one OpenCV thread, for instruction counts under callgrind
+// (bench/callgrind-step.sh).
 #include "scene_pairs.hpp"
 #include "sweep.hpp"
 #include "treestereo/data_dir.hpp"
@@ -49,6 +54,7 @@ struct Options {
   int runs = 3;
   std::string only = "table,errors,jadeplant,timing";
   std::string set;
+  bool mask = false; // row/errors: detect inside the rendered canopy masks
   std::string data = data_dir();
 };
 
@@ -96,6 +102,14 @@ std::vector<Perturbation> perturbations()
   };
 }
 
+// siftmatch's detection defaults where lib's differ: every row detects with them.
+void detection_defaults(MatchParams &p)
+{
+  p.detect.contrast_threshold = 0.035;
+  p.detect.mask_inset = 4; // only acts with a mask
+}
+constexpr const char *kDetection = "contrast-threshold=0.035, mask-inset=4 (with a mask)";
+
 // The "two-layer test on" rows: siftmatch's defaults for the refinement's filters.
 void filters_on(MatchParams &p)
 {
@@ -141,6 +155,7 @@ void apply_set(MatchParams &p, const std::string &set)
     else if (k == "scale") p.detect.scale = v;
     else if (k == "nfeatures") p.detect.nfeatures = int(v);
     else if (k == "contrast-threshold") p.detect.contrast_threshold = v;
+    else if (k == "mask-inset") p.detect.mask_inset = int(v);
     else if (k == "ratio") p.matcher.ratio = v;
     else if (k == "epipolar-tolerance") p.matcher.constraints.epipolar_tolerance = v;
     else if (k == "mutual") p.matcher.constraints.mutual = v != 0;
@@ -152,7 +167,8 @@ void apply_set(MatchParams &p, const std::string &set)
 MatchParams element_params(const StereoGeometry &g, int width, MatchMethod method, bool filters,
                            const std::string &set)
 {
-  MatchParams p; // lib defaults = siftmatch's defaults for detection and matching
+  MatchParams p; // lib defaults = siftmatch's defaults for matching
+  detection_defaults(p);
   p.detect.scale = 1.0;
   while (width * p.detect.scale > 648.0)
     p.detect.scale *= 0.5;
@@ -211,7 +227,7 @@ struct Row {
 };
 
 Row run_row(const std::vector<Pair> &pairs, const Perturbation &pert, const MatchParams &p,
-            int runs)
+            int runs, bool masked = false)
 {
   Row row;
   const StereoMatcher matcher(p);
@@ -219,7 +235,8 @@ Row run_row(const std::vector<Pair> &pairs, const Perturbation &pert, const Matc
     const cv::Mat right = pert.apply(pair.scene.view[RIGHT]);
     StereoMatchResult r;
     for (int i = 0; i < runs; ++i) {
-      r = matcher.run(pair.scene.view[LEFT], right, cv::Mat(), cv::Mat());
+      r = matcher.run(pair.scene.view[LEFT], right, masked ? pair.scene.mask[LEFT] : cv::Mat(),
+                      masked ? pair.scene.mask[RIGHT] : cv::Mat());
       row.ms.push_back(r.stats.detect_ms + r.stats.match_ms + r.stats.refine_ms);
     }
     for (StereoMatch &m : r.matches) {
@@ -249,9 +266,9 @@ void table(const std::vector<Pair> &pairs, const Options &o)
     std::printf("%g ", d);
   std::printf("m), frame 0, whole views (no mask). Keypoints and matches: mean per pair; "
               "min: the pair with the fewest. ms: median of %d run(s) per pair of the whole "
-              "step (detection of both views, matching, refinement, two-layer test). Two-layer "
-              "test on: %s%s%s.\n\n",
-              o.runs, kFiltersOn, o.set.empty() ? "" : ", then --set ", o.set.c_str());
+              "step (detection of both views, matching, refinement, two-layer test). Detection: "
+              "%s. Two-layer test on: %s%s%s.\n\n",
+              o.runs, kDetection, kFiltersOn, o.set.empty() ? "" : ", then --set ", o.set.c_str());
   std::printf("| condition | method | constraints | two-layer test | keypoints L | keypoints R "
               "| matches | min matches | evaluated | wrong | correct %% | ms |\n"
               "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -293,7 +310,7 @@ void one_row(const std::vector<Pair> &pairs, const Options &o)
   const MatchParams p =
       element_params(pairs[0].scene.geometry, o.size.width, MatchMethod::Euclidean, true, o.set);
   const double c0 = cpu_ms();
-  Row r = run_row(pairs, perturbations()[0], p, o.runs);
+  Row r = run_row(pairs, perturbations()[0], p, o.runs, o.mask);
   const double n = double(pairs.size()), cpu = (cpu_ms() - c0) / n / o.runs;
   std::printf("| %s | %.0f/%.0f | %.0f | %zu | %zu | %zu | %.2f | %.1f | %.0f |\n",
               o.set.empty() ? "(siftmatch's defaults)" : o.set.c_str(), double(r.kp_l) / n,
@@ -354,7 +371,9 @@ void errors(const std::vector<Pair> &pairs, const Options &o)
         const MatchParams p =
             element_params(pair.scene.geometry, o.size.width, method, filters, o.set);
         const StereoMatchResult r =
-            StereoMatcher(p).run(pair.scene.view[LEFT], pair.scene.view[RIGHT], cv::Mat(), cv::Mat());
+            StereoMatcher(p).run(pair.scene.view[LEFT], pair.scene.view[RIGHT],
+                                 o.mask ? pair.scene.mask[LEFT] : cv::Mat(),
+                                 o.mask ? pair.scene.mask[RIGHT] : cv::Mat());
         const cv::Mat &dt = pair.scene.d_true;
         for (const StereoMatch &m : r.matches) {
           const int x = int(std::lround(m.xl)), y = int(std::lround(m.yl));
@@ -405,6 +424,7 @@ void jadeplant(const Options &o)
   for (MatchMethod method : {MatchMethod::Euclidean, MatchMethod::CosineNorm})
     for (bool filters : {false, true}) {
       MatchParams p;
+      detection_defaults(p);
       p.matcher.method = method;
       p.matcher.constraints.epipolar_tolerance = 1.0;
       p.matcher.constraints.min_disparity = 0;
@@ -455,11 +475,17 @@ void timing(const Options &o)
     double scale;
     int nfeatures;
     double contrast;
+    int inset; // mask-inset (acts on the canopy rows only)
   };
+  // The first two rows of each size: siftmatch's defaults before the fifth session (contrast
+  // 0.04, no inset) and now (0.035, inset 4).
   const Setting settings[] = {
-      {{1296, 972}, 0.5, 0, 0.02},  {{1296, 972}, 0.5, 0, 0.04},  {{1296, 972}, 0.5, 0, 0.035},
-      {{1296, 972}, 0.4, 0, 0.02},  {{1296, 972}, 0.5, 1500, 0.02}, {{1296, 972}, 0.25, 0, 0.02},
-      {{2592, 1944}, 0.25, 0, 0.02}, {{2592, 1944}, 0.25, 0, 0.04}, {{2592, 1944}, 0.25, 0, 0.035},
+      {{1296, 972}, 0.5, 0, 0.04, 0},    {{1296, 972}, 0.5, 0, 0.035, 4},
+      {{1296, 972}, 0.5, 0, 0.035, 0},   {{1296, 972}, 0.5, 0, 0.02, 0},
+      {{1296, 972}, 0.4, 0, 0.02, 0},    {{1296, 972}, 0.5, 1500, 0.02, 0},
+      {{1296, 972}, 0.25, 0, 0.02, 0},   {{2592, 1944}, 0.25, 0, 0.04, 0},
+      {{2592, 1944}, 0.25, 0, 0.035, 4}, {{2592, 1944}, 0.25, 0, 0.035, 0},
+      {{2592, 1944}, 0.25, 0, 0.02, 0},
   };
   cv::Size rendered;
   bench::ScenePair pair;
@@ -479,6 +505,9 @@ void timing(const Options &o)
       p.detect.scale = st.scale;
       p.detect.nfeatures = st.nfeatures;
       p.detect.contrast_threshold = st.contrast;
+      p.detect.mask_inset = st.inset;
+      if (!masked && st.inset > 0)
+        continue; // the same as the row without the inset
       const StereoMatcher m(p);
       const cv::Mat ml = masked ? pair.mask[LEFT] : cv::Mat(), mr = masked ? pair.mask[RIGHT] : cv::Mat();
       StereoMatchResult r = m.run(pair.view[LEFT], pair.view[RIGHT], ml, mr); // warm-up
@@ -493,15 +522,39 @@ void timing(const Options &o)
         tot.push_back(r.stats.detect_ms + r.stats.match_ms + r.stats.refine_ms);
       }
       const MatchAccuracy acc = evaluate_matches(r.matches, gt, nocc, 1.0);
+      const std::string mask_name =
+          !masked ? "no" : st.inset > 0 ? "canopy, inset " + std::to_string(st.inset) : "canopy";
       std::printf("| %dx%d | %.2g | %d | %.2g | %s | %zu/%zu | %zu | %.2f | %.1f | %.1f | %.1f | "
                   "%.1f | %.0f |\n",
                   st.size.width, st.size.height, st.scale, st.nfeatures, st.contrast,
-                  masked ? "canopy" : "no", r.stats.keypoints[0], r.stats.keypoints[1],
+                  mask_name.c_str(),
+                  r.stats.keypoints[0], r.stats.keypoints[1],
                   r.matches.size(), 100.0 * acc.correct_rate(), median(det), median(mat),
                   median(ref), median(tot), median(cpu));
       std::fflush(stdout);
     }
   }
+}
+
+// The siftmatch step alone on the timing pair (1296x972, seed 1 at 2.0 m, canopy mask), with
+// siftmatch's defaults then --set, --runs times on one OpenCV thread (the right view still in its
+// own thread, as siftmatch does): under callgrind the instructions of --runs N minus those of
+// --runs 0, over N, are the step's, repeatable whatever the load (bench/callgrind-step.sh).
+void step(const Options &o)
+{
+  cv::setNumThreads(1); // no pool threads spinning: the count is the work
+  SceneParams sp;
+  sp.image_size = o.size;
+  const bench::ScenePair pair = bench::render_pair(sp);
+  const MatchParams p =
+      element_params(pair.geometry, o.size.width, MatchMethod::Euclidean, true, o.set);
+  const StereoMatcher m(p);
+  StereoMatchResult r;
+  for (int i = 0; i < o.runs; ++i)
+    r = m.run(pair.view[LEFT], pair.view[RIGHT], pair.mask[LEFT], pair.mask[RIGHT]);
+  std::printf("step %s: %d run(s), keypoints %zu/%zu, matches %zu\n",
+              o.set.empty() ? "(siftmatch's defaults)" : o.set.c_str(), o.runs,
+              r.stats.keypoints[0], r.stats.keypoints[1], r.matches.size());
 }
 
 } // namespace
@@ -524,13 +577,16 @@ int main(int argc, char **argv)
         if (s.empty())
           throw std::runtime_error("--size: expected WxH");
         o.size = s[0];
-      } else if (a == "--runs") o.runs = std::max(1, std::atoi(next().c_str()));
+      } else if (a == "--runs") o.runs = std::max(0, std::atoi(next().c_str()));
       else if (a == "--only") o.only = next();
       else if (a == "--set") o.set = next();
       else if (a == "--data") o.data = next();
+      else if (a == "--mask") o.mask = true;
       else throw std::runtime_error("unknown option " + a);
     }
     auto want = [&](const char *what) { return o.only.find(what) != std::string::npos; };
+    if (o.runs == 0 && o.only != "step")
+      throw std::runtime_error("--runs 0 is only for --only step");
     if (want("table") || want("errors") || want("row")) {
       const std::vector<Pair> pairs = render_pairs(o);
       if (want("table"))
@@ -544,6 +600,8 @@ int main(int argc, char **argv)
       jadeplant(o);
     if (want("timing"))
       timing(o);
+    if (want("step"))
+      step(o);
   } catch (const std::exception &e) {
     std::fprintf(stderr, "bench-match-scene: %s\n", e.what());
     return 1;

@@ -13,8 +13,15 @@
  *
  * With #siftmatch:use-mask and a #GstTreeStereoVegetationMeta from exgsegment on the buffer,
  * each view is searched only inside its canopy (the mask, or the bounding box when the meta
- * carries no mask); without that meta the whole view is searched. Pixels pass through
- * untouched.
+ * carries no mask) and #siftmatch:mask-inset px (of the detection image) away from its edge;
+ * without that meta the whole view is searched. Pixels pass through untouched.
+ *
+ * SIFT's contrast threshold is 0.035 by default (it was 0.04), with a mask inset of 4: the
+ * keypoints within 4 detection px of the canopy's edge, whose descriptor windows straddle the
+ * background and whose matches mostly fail the two-layer test, are about as many as the extra
+ * ones the lower threshold finds inside the canopy. The step then costs what it cost at 0.04
+ * without an inset, and keeps 7-16% more matches in the canopy and 20-25% more on whole views
+ * (docs/elements/siftmatch.md).
  *
  * The two-layer test is on by default (#siftmatch:layer-tolerance 0.5; lib keeps it off): on 9
  * treetestsrc pairs at 1296x972 it takes the correct-match rate from 91.5% to 99.4% (178 of 526
@@ -74,9 +81,10 @@ using namespace treestereo;
 #define DEFAULT_MAX_DEPTH 10000.0
 #define DEFAULT_MUTUAL TRUE
 #define DEFAULT_NFEATURES 0
-#define DEFAULT_CONTRAST_THRESHOLD 0.04
+#define DEFAULT_CONTRAST_THRESHOLD 0.035
 #define DEFAULT_SCALE 0.0
 #define DEFAULT_USE_MASK TRUE
+#define DEFAULT_MASK_INSET 4
 #define DEFAULT_REFINE TRUE
 #define DEFAULT_MIN_ZNCC 0.9
 #define DEFAULT_MIN_ZNCC_DROP 0.05
@@ -107,6 +115,7 @@ enum {
   PROP_CONTRAST_THRESHOLD,
   PROP_SCALE,
   PROP_USE_MASK,
+  PROP_MASK_INSET,
   PROP_REFINE,
   PROP_MIN_ZNCC,
   PROP_MIN_ZNCC_DROP,
@@ -135,6 +144,7 @@ struct Settings {
   double contrast_threshold = DEFAULT_CONTRAST_THRESHOLD;
   double scale = DEFAULT_SCALE;
   bool use_mask = DEFAULT_USE_MASK;
+  int mask_inset = DEFAULT_MASK_INSET;
   bool refine = DEFAULT_REFINE;
   double min_zncc = DEFAULT_MIN_ZNCC;
   double min_zncc_drop = DEFAULT_MIN_ZNCC_DROP;
@@ -265,6 +275,7 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   p.detect.contrast_threshold = s.contrast_threshold;
   p.detect.scale = key.scale;
   p.detect.use_mask = s.use_mask;
+  p.detect.mask_inset = s.mask_inset;
   p.matcher.method = s.method == GST_TREE_STEREO_MATCH_COSINE_NORM ? MatchMethod::CosineNorm
                                                                    : MatchMethod::Euclidean;
   p.matcher.ratio = s.ratio;
@@ -504,6 +515,9 @@ static void gst_sift_match_set_property(GObject *object, guint prop_id, const GV
   case PROP_USE_MASK:
     s.use_mask = g_value_get_boolean(value);
     break;
+  case PROP_MASK_INSET:
+    s.mask_inset = g_value_get_int(value);
+    break;
   case PROP_REFINE:
     s.refine = g_value_get_boolean(value);
     break;
@@ -586,6 +600,9 @@ static void gst_sift_match_get_property(GObject *object, guint prop_id, GValue *
     break;
   case PROP_USE_MASK:
     g_value_set_boolean(value, s.use_mask);
+    break;
+  case PROP_MASK_INSET:
+    g_value_set_int(value, s.mask_inset);
     break;
   case PROP_REFINE:
     g_value_set_boolean(value, s.refine);
@@ -710,6 +727,13 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
   install_boolean(gobject_class, PROP_USE_MASK, "use-mask", "Use mask",
                   "Detect only inside the canopy of the vegetation meta (when there is one)",
                   DEFAULT_USE_MASK);
+  g_object_class_install_property(
+      gobject_class, PROP_MASK_INSET, g_param_spec_int(
+          "mask-inset", "Mask inset",
+          "With use-mask: keep no keypoint within this many px (of the detection image, see "
+          "scale) of the canopy's edge, where the descriptor window straddles the background; "
+          "0 = the whole canopy",
+          0, 64, DEFAULT_MASK_INSET, PROP_FLAGS));
   install_boolean(gobject_class, PROP_REFINE, "refine", "Refine",
                   "Refine each disparity to sub-pixel by correlation at full resolution and "
                   "drop matches without a clear correlation peak",

@@ -81,6 +81,8 @@ FeatureDetector::FeatureDetector(const DetectParams &params) : params_(params)
     throw std::runtime_error("feature detection: contrast_threshold must be > 0");
   if (params.roi_margin < 0)
     throw std::runtime_error("feature detection: roi_margin must be >= 0");
+  if (params.mask_inset < 0)
+    throw std::runtime_error("feature detection: mask_inset must be >= 0");
   // Default layers (3), edge threshold (10) and sigma (1.6); float descriptors for the matchers.
   sift_ = cv::SIFT::create(params.nfeatures, 3, params.contrast_threshold, 10.0, 1.6, CV_32F);
 }
@@ -107,6 +109,13 @@ Features FeatureDetector::detect(const cv::Mat &view, const cv::Mat &mask) const
         cv::resize(m, small_mask, small.size(), 0, 0, cv::INTER_NEAREST);
       img = small;
       m = small_mask;
+    }
+    if (!m.empty() && params_.mask_inset > 0) {
+      const int r = params_.mask_inset;
+      cv::Mat eroded; // the default border value of erode is the maximum: borders do not erode
+      cv::erode(m, eroded,
+                cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1)));
+      m = eroded;
     }
     // An empty Mat is OpenCV's "no mask".
     sift_->detectAndCompute(img, m, f.keypoints, f.descriptors);

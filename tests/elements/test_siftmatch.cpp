@@ -298,6 +298,26 @@ GST_START_TEST(test_vegetation_mask_restricts_detection)
     }
     gst_buffer_unref(out);
   }
+  /* mask-inset: no match within that many px (detection scale 1 here) of the canopy's edge at
+   * x = W/2; with 0 there are some */
+  for (int inset : {0, 20}) {
+    g_object_set(rig.h->element, "mask-inset", inset, nullptr);
+    GstBuffer *in = side_by_side("GRAY8", l, r, 0);
+    add_geometry(in, W, H, FX, W / 2.0, W / 2.0, BASELINE);
+    add_vegetation(in, mask, half, true);
+    GstBuffer *out = gst_harness_push_and_pull(rig.h, in);
+    const GstTreeStereoMatchesMeta *m = gst_buffer_get_tree_stereo_matches_meta(out);
+    guint near_edge = 0;
+    for (guint i = 0; i < m->n_matches; i++)
+      near_edge += m->matches[i].xl > W / 2.0 - 19.0;
+    if (inset == 0)
+      fail_unless(near_edge >= 3, "only %u matches within 19 px of the edge", near_edge);
+    else
+      fail_unless(near_edge == 0 && m->n_matches > 30, "%u of %u matches within 19 px of the edge",
+                  near_edge, m->n_matches);
+    gst_buffer_unref(out);
+  }
+  g_object_set(rig.h->element, "mask-inset", 4, nullptr);
   /* a view without a canopy: nothing is searched, nothing matched */
   GstBuffer *in = side_by_side("GRAY8", l, r, 0);
   add_geometry(in, W, H, FX, W / 2.0, W / 2.0, BASELINE);
@@ -391,7 +411,7 @@ GST_START_TEST(test_property_ranges)
       {"max-disparity", -1.0, 100000.0, -1.0},
       {"min-depth", 1.0, 1e6, 500.0},
       {"max-depth", 1.0, 1e7, 10000.0},
-      {"contrast-threshold", 0.001, 1.0, 0.04},
+      {"contrast-threshold", 0.001, 1.0, 0.035},
       {"scale", 0.0, 1.0, 0.0},
       {"min-zncc", -1.0, 1.0, 0.9},
       {"min-zncc-drop", 0.0, 2.0, 0.05},
@@ -417,6 +437,12 @@ GST_START_TEST(test_property_ranges)
   GParamSpec *c = g_object_class_find_property(klass, "candidates");
   fail_unless_equals_int(G_PARAM_SPEC_INT(c)->minimum, 1);
   fail_unless_equals_int(G_PARAM_SPEC_INT(c)->default_value, 5);
+  GParamSpec *inset = g_object_class_find_property(klass, "mask-inset");
+  fail_unless(inset != nullptr && G_IS_PARAM_SPEC_INT(inset));
+  fail_unless(inset->flags & GST_PARAM_MUTABLE_PLAYING);
+  fail_unless_equals_int(G_PARAM_SPEC_INT(inset)->minimum, 0);
+  fail_unless_equals_int(G_PARAM_SPEC_INT(inset)->maximum, 64);
+  fail_unless_equals_int(G_PARAM_SPEC_INT(inset)->default_value, 4);
   GParamSpec *n = g_object_class_find_property(klass, "nfeatures");
   fail_unless_equals_int(G_PARAM_SPEC_INT(n)->minimum, 0);
   fail_unless_equals_int(G_PARAM_SPEC_INT(n)->default_value, 0);

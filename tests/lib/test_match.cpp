@@ -284,6 +284,57 @@ TEST(Features, MaskAndRegionLimitDetection)
   EXPECT_THROW(detect_features(cv::Mat(10, 10, CV_32F), cv::Mat(), p), std::runtime_error);
 }
 
+
+// mask_inset keeps keypoints off the canopy's edge by that many px of the detection image, not
+// off the view's border, and nowhere else.
+TEST(Features, MaskInsetKeepsKeypointsOffTheCanopysEdge)
+{
+  const cv::Mat img = texture(cv::Size(320, 240), 12);
+  // The canopy: a disc in the middle, and a block touching the view's left border.
+  cv::Mat mask = cv::Mat::zeros(img.size(), CV_8U);
+  cv::circle(mask, cv::Point(200, 120), 70, cv::Scalar(255), cv::FILLED);
+  mask(cv::Rect(0, 40, 60, 160)).setTo(255);
+  // Distance of each pixel to the nearest non-canopy pixel, the view's border not counting.
+  cv::Mat padded, dist;
+  cv::copyMakeBorder(mask, padded, 1, 1, 1, 1, cv::BORDER_REPLICATE);
+  cv::distanceTransform(padded, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  dist = dist(cv::Rect(1, 1, img.cols, img.rows));
+  for (double scale : {1.0, 0.5}) {
+    DetectParams p;
+    p.scale = scale;
+    const Features all = detect_features(img, mask, p);
+    p.mask_inset = 4;
+    const Features inset = detect_features(img, mask, p);
+    // Reach of 4 detection px at full resolution, less the rounding of the keypoint to the
+    // detection grid (SIFT tests the mask at its own rounded position, 0.25 px off ours).
+    const double reach = 4.0 / scale - 1.0 / scale;
+    std::size_t near_edge = 0, near_border = 0;
+    for (const cv::KeyPoint &k : all.keypoints) {
+      const float d = dist.at<float>(cvRound(k.pt.y), cvRound(k.pt.x));
+      near_edge += d < reach;
+      near_border += k.pt.x < 8.0 / scale && d >= 6.0 / scale;
+    }
+    ASSERT_GT(near_edge, 5u) << "scale " << scale << ": the test needs keypoints at the edge";
+    ASSERT_GT(near_border, 2u) << "scale " << scale << ": ... and at the view's border";
+    std::size_t inset_near_border = 0;
+    for (const cv::KeyPoint &k : inset.keypoints) {
+      EXPECT_GE(dist.at<float>(cvRound(k.pt.y), cvRound(k.pt.x)), reach)
+          << "scale " << scale << ": keypoint at (" << k.pt.x << ", " << k.pt.y << ")";
+      inset_near_border +=
+          k.pt.x < 8.0 / scale && dist.at<float>(cvRound(k.pt.y), cvRound(k.pt.x)) >= 6.0 / scale;
+    }
+    // Inside, nothing else changes: the inset view keeps every keypoint away from the edge.
+    std::size_t far_from_edge = 0;
+    for (const cv::KeyPoint &k : all.keypoints)
+      far_from_edge += dist.at<float>(cvRound(k.pt.y), cvRound(k.pt.x)) >= 5.0 / scale;
+    EXPECT_GE(inset.size(), far_from_edge) << "scale " << scale;
+    EXPECT_LT(inset.size(), all.size()) << "scale " << scale;
+    EXPECT_EQ(inset_near_border, near_border) << "scale " << scale << ": the border eroded";
+  }
+  DetectParams bad;
+  bad.mask_inset = -1;
+  EXPECT_THROW(FeatureDetector{bad}, std::runtime_error);
+}
 TEST(Refine, RecoversSubPixelShift)
 {
   const double d_true = 12.37;

@@ -18,6 +18,11 @@ struct DetectParams {
   bool use_mask = true;              // keypoints only where the mask is non-zero (when given)
   bool roi = true;                   // detect only in the mask's bounding box (when given)
   int roi_margin = 16;               // px at full resolution added around that box
+  // Keypoints only where the mask, eroded by this many px of the detection image (a disc), is
+  // set: none within mask_inset px of the canopy's edge, where SIFT's descriptor window (radius
+  // ~10 x its scale) straddles the background at another depth. 0 = the mask as it is. The
+  // view's border is not an edge (it does not erode the mask).
+  int mask_inset = 0;
 };
 
 // Keypoints in the coordinates of the full-resolution view that was passed in.
