@@ -20,7 +20,7 @@
  * keypoints within 4 detection px of the canopy's edge, whose descriptor windows straddle the
  * background and whose matches mostly fail the two-layer test, are about as many as the extra
  * ones the lower threshold finds inside the canopy. The step then costs what it cost at 0.04
- * without an inset, and keeps 7-16% more matches in the canopy and 20-25% more on whole views
+ * without an inset, and keeps 7-12% more matches in the canopy and 23-30% more on whole views
  * (docs/elements/siftmatch.md).
  *
  * The two-layer test is on by default (#siftmatch:layer-tolerance 0.5; lib keeps it off): on 9
