@@ -85,6 +85,10 @@ FeatureDetector::FeatureDetector(const DetectParams &params) : params_(params)
     throw std::runtime_error("feature detection: mask_inset must be >= 0");
   // Default layers (3), edge threshold (10) and sigma (1.6); float descriptors for the matchers.
   sift_ = cv::SIFT::create(params.nfeatures, 3, params.contrast_threshold, 10.0, 1.6, CV_32F);
+  if (params.mask_inset > 0) {
+    const int d = 2 * params.mask_inset + 1;
+    inset_kernel_ = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(d, d));
+  }
 }
 
 Features FeatureDetector::detect(const cv::Mat &view, const cv::Mat &mask) const
@@ -110,11 +114,9 @@ Features FeatureDetector::detect(const cv::Mat &view, const cv::Mat &mask) const
       img = small;
       m = small_mask;
     }
-    if (!m.empty() && params_.mask_inset > 0) {
-      const int r = params_.mask_inset;
+    if (!m.empty() && !inset_kernel_.empty()) {
       cv::Mat eroded; // the default border value of erode is the maximum: borders do not erode
-      cv::erode(m, eroded,
-                cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1)));
+      cv::erode(m, eroded, inset_kernel_);
       m = eroded;
     }
     // An empty Mat is OpenCV's "no mask".

@@ -284,7 +284,6 @@ TEST(Features, MaskAndRegionLimitDetection)
   EXPECT_THROW(detect_features(cv::Mat(10, 10, CV_32F), cv::Mat(), p), std::runtime_error);
 }
 
-
 // mask_inset keeps keypoints off the canopy's edge by that many px of the detection image, not
 // off the view's border, and nowhere else.
 TEST(Features, MaskInsetKeepsKeypointsOffTheCanopysEdge)
@@ -299,6 +298,9 @@ TEST(Features, MaskInsetKeepsKeypointsOffTheCanopysEdge)
   cv::copyMakeBorder(mask, padded, 1, 1, 1, 1, cv::BORDER_REPLICATE);
   cv::distanceTransform(padded, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
   dist = dist(cv::Rect(1, 1, img.cols, img.rows));
+  auto edge_distance = [&](const cv::KeyPoint &k) {
+    return dist.at<float>(cvRound(k.pt.y), cvRound(k.pt.x));
+  };
   for (double scale : {1.0, 0.5}) {
     DetectParams p;
     p.scale = scale;
@@ -310,7 +312,7 @@ TEST(Features, MaskInsetKeepsKeypointsOffTheCanopysEdge)
     const double reach = 4.0 / scale - 1.0 / scale;
     std::size_t near_edge = 0, near_border = 0;
     for (const cv::KeyPoint &k : all.keypoints) {
-      const float d = dist.at<float>(cvRound(k.pt.y), cvRound(k.pt.x));
+      const float d = edge_distance(k);
       near_edge += d < reach;
       near_border += k.pt.x < 8.0 / scale && d >= 6.0 / scale;
     }
@@ -318,15 +320,14 @@ TEST(Features, MaskInsetKeepsKeypointsOffTheCanopysEdge)
     ASSERT_GT(near_border, 2u) << "scale " << scale << ": ... and at the view's border";
     std::size_t inset_near_border = 0;
     for (const cv::KeyPoint &k : inset.keypoints) {
-      EXPECT_GE(dist.at<float>(cvRound(k.pt.y), cvRound(k.pt.x)), reach)
+      EXPECT_GE(edge_distance(k), reach)
           << "scale " << scale << ": keypoint at (" << k.pt.x << ", " << k.pt.y << ")";
-      inset_near_border +=
-          k.pt.x < 8.0 / scale && dist.at<float>(cvRound(k.pt.y), cvRound(k.pt.x)) >= 6.0 / scale;
+      inset_near_border += k.pt.x < 8.0 / scale && edge_distance(k) >= 6.0 / scale;
     }
     // Inside, nothing else changes: the inset view keeps every keypoint away from the edge.
     std::size_t far_from_edge = 0;
     for (const cv::KeyPoint &k : all.keypoints)
-      far_from_edge += dist.at<float>(cvRound(k.pt.y), cvRound(k.pt.x)) >= 5.0 / scale;
+      far_from_edge += edge_distance(k) >= 5.0 / scale;
     EXPECT_GE(inset.size(), far_from_edge) << "scale " << scale;
     EXPECT_LT(inset.size(), all.size()) << "scale " << scale;
     EXPECT_EQ(inset_near_border, near_border) << "scale " << scale << ": the border eroded";
@@ -335,6 +336,7 @@ TEST(Features, MaskInsetKeepsKeypointsOffTheCanopysEdge)
   bad.mask_inset = -1;
   EXPECT_THROW(FeatureDetector{bad}, std::runtime_error);
 }
+
 TEST(Refine, RecoversSubPixelShift)
 {
   const double d_true = 12.37;

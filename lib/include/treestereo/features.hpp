@@ -70,6 +70,7 @@ public:
 private:
   DetectParams params_;
   cv::Ptr<cv::SIFT> sift_;
+  cv::Mat inset_kernel_; // a disc of radius mask_inset; empty when it is 0
 };
 
 // One-shot convenience: creates a detector and runs it once.
