@@ -143,9 +143,10 @@ std::string camera_source(const std::string &name, const Options &o)
 {
   std::ostringstream s;
   const std::string caps = o.camera_caps ? o.camera_caps : "video/x-raw,format=RGB";
+  // no num-buffers: --frames counts measured pairs, not camera frames. The two cameras start
+  // at different times and their first unpaired frames are dropped, so the tool itself ends the
+  // stream after the N-th pair (on_result).
   s << "aravissrc camera-name=" << quoted(name) << " do-timestamp=true";
-  if (o.frames > 0)
-    s << " num-buffers=" << o.frames;
   // a leaky queue right behind the camera keeps do-timestamp's stamp the frame's arrival
   // (docs/aravis.md)
   s << " ! " << caps << " ! queue max-size-buffers=8 max-size-bytes=0 max-size-time=0 "
@@ -167,7 +168,8 @@ struct Job {
   std::ostream *json = nullptr;
   std::ostream *csv = nullptr;
   guint64 frames = 0, present = 0;
-  bool error = false, interrupted = false;
+  guint64 stop_after = 0; // live cameras: pairs to measure before ending the stream (0: all)
+  bool error = false, interrupted = false, stopping = false;
   std::chrono::steady_clock::time_point start;
 };
 
@@ -323,9 +325,19 @@ void print_progress(Job &job, const GstTreeStereoMetricsMeta *mm)
   std::fflush(stdout);
 }
 
+gboolean send_eos(gpointer data)
+{
+  Job &job = *static_cast<Job *>(data);
+  gst_element_send_event(job.pipeline, gst_event_new_eos());
+  return G_SOURCE_REMOVE;
+}
+
 GstPadProbeReturn on_result(GstPad *, GstPadProbeInfo *info, gpointer data)
 {
   Job &job = *static_cast<Job *>(data);
+  // pairs already on their way when the N-th came out are not measured results
+  if (job.stop_after > 0 && job.frames >= job.stop_after)
+    return GST_PAD_PROBE_DROP;
   GstBuffer *buf = GST_PAD_PROBE_INFO_BUFFER(info);
   const GstTreeStereoMetricsMeta *mm = gst_buffer_get_tree_stereo_metrics_meta(buf);
   if (job.json)
@@ -336,6 +348,10 @@ GstPadProbeReturn on_result(GstPad *, GstPadProbeInfo *info, gpointer data)
   job.frames++;
   if (mm && mm->metrics.tree_present)
     job.present++;
+  if (job.stop_after > 0 && job.frames == job.stop_after && !job.stopping) {
+    job.stopping = true; // streaming thread: the EOS is sent from the main loop
+    g_idle_add(send_eos, &job);
+  }
   return GST_PAD_PROBE_OK;
 }
 
@@ -416,6 +432,8 @@ std::string build_description(Job &job)
     left = camera_source(o.camera_left, o);
     right = camera_source(o.camera_right, o);
     job.total_frames = o.frames;
+    if (o.frames > 0)
+      job.stop_after = guint64(o.frames);
   } else {
     if (!o.left || !o.right)
       usage_error("--left and --right go together");
@@ -506,7 +524,9 @@ int run(int argc, char **argv)
       {"no-rectify", 0, 0, G_OPTION_ARG_NONE, &o.no_rectify,
        "The input is already rectified (geometry still from --calibration)", nullptr},
       {"frames", 'n', 0, G_OPTION_ARG_INT, &o.frames,
-       "Frames to process (synthetic default 30; all for files)", "N"},
+       "Frames to process (synthetic default 30; all for files; for cameras: pairs to measure, "
+       "until Ctrl-C by default)",
+       "N"},
       {"size", 0, 0, G_OPTION_ARG_STRING, &o.size, "Synthetic frame size (1296x972)", "WxH"},
       {"fps", 0, 0, G_OPTION_ARG_DOUBLE, &o.fps, "Frame rate of image sequences/synthetic (7)",
        "FPS"},
