@@ -127,13 +127,17 @@ std::string with_opencv_yaml_header(const std::string &text)
 // - The top level: a calibration file's root is a map, so every line at column 0 is a key
 //   ("name:" or "name: value"), the document marker "---" or "...", a comment, or the leading
 //   %YAML directive (its second find: "%YAML:1.0\n----~\n~\n-").
+// - One document: after a line starting "..." at column 0 (the document's end) only blank lines
+//   and comments may follow (its third find: "a: 1\n...\n  - 1", an indented "-" after the end).
+//   This holds for flow-style ({...}) text too, which OpenCV reads with the same parser.
 std::string yaml_problem(const std::string &text)
 {
   const std::size_t first = text.find_first_not_of(" \t\r\n");
-  if (first != std::string::npos && (text[first] == '<' || text[first] == '{'))
+  if (first != std::string::npos && text[first] == '<')
     return "";
+  const bool flow = first != std::string::npos && text[first] == '{';
   std::vector<std::size_t> levels{0};
-  std::size_t line_no = 0;
+  std::size_t line_no = 0, end_line = 0;
   bool seen_content = false;
   for (std::size_t pos = 0; pos <= text.size();) {
     const std::size_t end = std::min(text.find('\n', pos), text.size());
@@ -145,6 +149,18 @@ std::string yaml_problem(const std::string &text)
     const std::size_t indent = line.find_first_not_of(' ');
     if (indent == std::string::npos || line[indent] == '#')
       continue; // blank or a comment
+    if (end_line > 0)
+      return "line " + std::to_string(line_no) + " follows the end of the document ('...' on line " +
+             std::to_string(end_line) + "): a calibration file holds one YAML document";
+    if (line.compare(0, 3, "...") == 0) {
+      end_line = line_no;
+      const std::size_t rest = line.find_first_not_of(' ', 3);
+      if (rest != std::string::npos && line[rest] != '#')
+        return "line " + std::to_string(line_no) + " has text after the document's end '...'";
+      continue;
+    }
+    if (flow)
+      continue; // a flow collection's lines may be indented any way
     if (indent > levels.back()) {
       levels.push_back(indent);
     } else {

@@ -388,11 +388,23 @@ TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
       // OpenCV unchecked: compressed files are decompressed and checked like plain ones
       {"hang4.yml.gz", "%YAML:1.0\n   rows: 1\n A---\nx",
        "line 3 is indented to a column no enclosing line has"},
+      // an indented "-" after the document's end "..." (the sixth session's CI run)
+      {"hang5.yml", "%YAML:1.0\na: 1\n...\n  - 1\n",
+       "line 4 follows the end of the document ('...' on line 3)"},
+      {"hang6.yml", "%YAML:1.0\na: {b: 1}\n... \n -\n",
+       "line 4 follows the end of the document ('...' on line 3)"},
   };
   for (const auto &h : hangs) {
     write_text(dir.file(h.name), h.text);
     expect_error([&] { load_calibration(dir.file(h.name)); }, h.name, "", h.why);
   }
+  // The end marker itself, with only comments after it, is fine.
+  const std::string good = dir.file("good.yml");
+  save_calibration(make_rig(), good);
+  {
+    std::ofstream(good, std::ios::app) << "...\n# written by hand\n\n";
+  }
+  EXPECT_NO_THROW(load_calibration(good));
   write_text(dir.file("cut.yml.gz"), std::string("\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\x03\xcb", 11));
   expect_error([&] { load_calibration(dir.file("cut.yml.gz")); }, "cut.yml.gz", "",
                "not a valid gzip file");
