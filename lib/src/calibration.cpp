@@ -126,9 +126,13 @@ std::string with_opencv_yaml_header(const std::string &text)
 //   between two levels).
 // - The top level: a calibration file's root is a map, so every line at column 0 is a key
 //   ("name:" or "name: value"), the document marker "---" or "...", a comment, or the leading
-//   %YAML directive (its second find: "%YAML:1.0\n----~\n~\n-").
+//   %YAML directive (its second find: "%YAML:1.0\n----~\n~\n-"), and the first such line comes
+//   before any indented one (a root indented to column k ends at the first line left of k, and
+//   the parser's document loop then hangs on what follows, as on "    - 1\na:\n  - a: 1").
 // - One document: after a line starting "..." at column 0 (the document's end) only blank lines
-//   and comments may follow (its third find: "a: 1\n...\n  - 1", an indented "-" after the end).
+//   and comments may follow (its third find: "a: 1\n...\n  - 1", an indented "-" after the end);
+//   "---" (the document's start) stands alone on its line, at most once, before the first key
+//   (fuzzing's next find: "--- - x\n--- -x\n--- --- d", a "---" with text after it, repeated).
 //   This holds for flow-style ({...}) text too, which OpenCV reads with the same parser.
 std::string yaml_problem(const std::string &text)
 {
@@ -138,7 +142,9 @@ std::string yaml_problem(const std::string &text)
   const bool flow = first != std::string::npos && text[first] == '{';
   std::vector<std::size_t> levels{0};
   std::size_t line_no = 0, end_line = 0;
-  bool seen_content = false;
+  // seen_content: any line but blanks and comments; seen_body: any but those, the directive
+  // and '---'; seen_key: a top-level key
+  bool seen_content = false, seen_body = false, seen_key = false, seen_marker = false;
   for (std::size_t pos = 0; pos <= text.size();) {
     const std::size_t end = std::min(text.find('\n', pos), text.size());
     ++line_no;
@@ -159,6 +165,21 @@ std::string yaml_problem(const std::string &text)
         return "line " + std::to_string(line_no) + " has text after the document's end '...'";
       continue;
     }
+    if (line.compare(0, 3, "---") == 0) {
+      const std::size_t rest = line.find_first_not_of(' ', 3);
+      if (seen_marker || seen_body)
+        return "line " + std::to_string(line_no) +
+               " starts a second YAML document: a calibration file holds one";
+      if (rest != std::string::npos && line[rest] != '#')
+        return "line " + std::to_string(line_no) + " has text after the document marker '---'";
+      seen_marker = true;
+      continue;
+    }
+    const bool directive = !seen_content && indent == 0 && line[0] == '%';
+    seen_content = true;
+    if (directive)
+      continue;
+    seen_body = true;
     if (flow)
       continue; // a flow collection's lines may be indented any way
     if (indent > levels.back()) {
@@ -169,12 +190,12 @@ std::string yaml_problem(const std::string &text)
       if (levels.back() != indent)
         return "line " + std::to_string(line_no) + " is indented to a column no enclosing line has";
     }
-    if (indent > 0)
+    if (indent > 0) {
+      if (!seen_key)
+        return "line " + std::to_string(line_no) +
+               " is indented, but a calibration file's top level starts at column 0";
       continue; // inside a key's value
-    const bool directive = !seen_content && line[0] == '%';
-    seen_content = true;
-    if (directive || line == "---" || line.compare(0, 4, "--- ") == 0 || line == "...")
-      continue;
+    }
     const unsigned char c = static_cast<unsigned char>(line[0]);
     const std::size_t colon = line.find(':');
     const bool key = (std::isalpha(c) || c == '_' || c == '"' || c == '\'') &&
@@ -184,6 +205,7 @@ std::string yaml_problem(const std::string &text)
       return "line " + std::to_string(line_no) +
              " starts at column 0 but is no key: a calibration file's top level is a map of "
              "'name: value' lines";
+    seen_key = true;
   }
   return "";
 }

@@ -372,27 +372,38 @@ TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
   expect_error([&] { load_calibration(dir.file("broken.yml")); }, "broken.yml", "", "not a valid OpenCV");
   write_text(dir.file("broken.xml"), "<?xml version=\"1.0\"?>\n<opencv_storage>\n<M1 type_id=\"opencv-matrix\">\n");
   expect_error([&] { load_calibration(dir.file("broken.xml")); }, "broken.xml", "", "not a valid OpenCV");
-  // fuzz-calibration's finds: OpenCV 4.6's YAML parser loops forever on each of these, so they
-  // are refused before the parser sees them.
+  // fuzz-calibration's finds and the classes they stand for: OpenCV 4.6's YAML parser loops
+  // forever on each of these, so they are refused before the parser sees them.
   const struct {
     const char *name, *text, *why;
   } hangs[] = {
-      // a dedent to column 1, between the levels at 0 and 3
+      // a root indented to column 3, ended by a line at column 1
       {"hang.yml", "%YAML:1.0\n   rows: 1\n A---\nx",
-       "line 3 is indented to a column no enclosing line has"},
+       "line 2 is indented, but a calibration file's top level starts at column 0"},
+      {"hang7.yml", "    - - 1\na:\n  - a: 1\n    a: {\n",
+       "line 1 is indented, but a calibration file's top level starts at column 0"},
+      // a dedent between two levels inside a value (refused, not known to hang)
+      {"dedent.yml", "%YAML:1.0\nM1:\n   rows: 1\n A: 2\n",
+       "line 4 is indented to a column no enclosing line has"},
       // column-0 lines that are no keys
-      {"hang2.yaml", "----~\n~\n-", "line 1 starts at column 0 but is no key"},
+      {"hang2.yaml", "----~\n~\n-", "line 1 has text after the document marker '---'"},
       {"hang3.yml", "%YAML:1.0\n---\nimage_width: 640\n~\n-",
        "line 4 starts at column 0 but is no key"},
       // the first again in a file named .gz (zlib reads plain text as it is), which went to
       // OpenCV unchecked: compressed files are decompressed and checked like plain ones
       {"hang4.yml.gz", "%YAML:1.0\n   rows: 1\n A---\nx",
-       "line 3 is indented to a column no enclosing line has"},
+       "line 2 is indented, but a calibration file's top level starts at column 0"},
       // an indented "-" after the document's end "..." (the sixth session's CI run)
       {"hang5.yml", "%YAML:1.0\na: 1\n...\n  - 1\n",
        "line 4 follows the end of the document ('...' on line 3)"},
       {"hang6.yml", "%YAML:1.0\na: {b: 1}\n... \n -\n",
        "line 4 follows the end of the document ('...' on line 3)"},
+      // "---" with text after it, repeated (fuzzing, sixth session); a second document is
+      // refused by the same rule
+      {"hang8.yml", "--- - \xc3\n--- -\xc3\n--- \xc3\n--- --- d",
+       "line 1 has text after the document marker '---'"},
+      {"twodocs.yml", "%YAML:1.0\n---\na: 1\n---\n -\n",
+       "line 4 starts a second YAML document: a calibration file holds one"},
   };
   for (const auto &h : hangs) {
     write_text(dir.file(h.name), h.text);
