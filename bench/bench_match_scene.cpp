@@ -14,8 +14,8 @@
 //
 // --set changes the settings of the "two-layer test on" rows (keys: min-zncc, min-zncc-drop,
 // layer-tolerance, layer-half-window, layer-search, layer-centre-tolerance, layer-min-zncc,
-// layer-centre-min-zncc, half-window, search, scale, nfeatures, contrast-threshold, mask-inset,
-// ratio, epipolar-tolerance, mutual), to explore other values. --mask: the row and errors modes
+// layer-centre-min-zncc, relocate, half-window, search, scale, nfeatures, contrast-threshold,
+// mask-inset, ratio, epipolar-tolerance, mutual), to explore other values. --mask: the row and errors modes
 // detect inside each view's rendered canopy mask, as siftmatch does behind exgsegment (default:
 // whole views, as Table 1). --only step runs just the siftmatch step on the timing pair (1296x972,
 // canopy mask) --runs times on one OpenCV thread, for instruction counts under callgrind
@@ -119,10 +119,11 @@ void filters_on(MatchParams &p)
   p.refine_params.layer_centre_tolerance = 0.7;
   p.refine_params.layer_min_zncc = 0.7;
   p.refine_params.layer_centre_min_zncc = 0.6;
+  p.refine_params.relocate = 1;
 }
 constexpr const char *kFiltersOn = "min-zncc=0.9, min-zncc-drop=0.05, layer-tolerance=0.5, "
                                    "layer-centre-tolerance=0.7, layer-min-zncc=0.7, "
-                                   "layer-centre-min-zncc=0.6";
+                                   "layer-centre-min-zncc=0.6, relocate=1";
 
 // The two-layer test switched off: the matcher as it was before it.
 void filters_off(MatchParams &p)
@@ -151,6 +152,7 @@ void apply_set(MatchParams &p, const std::string &set)
     else if (k == "layer-centre-tolerance") p.refine_params.layer_centre_tolerance = v;
     else if (k == "layer-min-zncc") p.refine_params.layer_min_zncc = v;
     else if (k == "layer-centre-min-zncc") p.refine_params.layer_centre_min_zncc = v;
+    else if (k == "relocate") p.refine_params.relocate = int(v);
     else if (k == "min-zncc-drop") p.refine_params.min_zncc_drop = v;
     else if (k == "scale") p.detect.scale = v;
     else if (k == "nfeatures") p.detect.nfeatures = int(v);

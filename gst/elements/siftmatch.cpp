@@ -41,6 +41,12 @@
  * The refinement's windows (7x7, #siftmatch:layer-window) are sized for a detection scale of 0.5
  * or more and grow by 0.5 / scale below it (13x13 and 21x21 at 2592x1944).
  *
+ * Last, each match is moved by at most #siftmatch:relocate px (default 1) to the pixel its
+ * disparity belongs to: a keypoint in a dark gap between two near leaves, where the leaf behind
+ * shows, takes the near leaves' disparity from its window and now stands on a near leaf. On 36
+ * treetestsrc pairs at 1.6/2.0/2.4 m it takes the correct rate from 99.33% to 99.56% with the
+ * same matches (docs/elements/siftmatch.md).
+ *
  * A buffer without the geometry meta, or a stream that is not side by side, is an error.
  *
  * ## Example launch line
@@ -94,6 +100,7 @@ using namespace treestereo;
 #define DEFAULT_LAYER_CENTRE_TOLERANCE 0.7
 #define DEFAULT_LAYER_MIN_ZNCC 0.7
 #define DEFAULT_LAYER_CENTRE_MIN_ZNCC 0.6
+#define DEFAULT_RELOCATE 1
 #define DEFAULT_POST_MESSAGES TRUE
 /* scale=0 (automatic) detects on a copy at most this wide: SIFT upsamples it 2x internally, so
  * its base octave is then at most 1296 px wide whatever the camera's resolution. */
@@ -125,6 +132,7 @@ enum {
   PROP_LAYER_CENTRE_TOLERANCE,
   PROP_LAYER_MIN_ZNCC,
   PROP_LAYER_CENTRE_MIN_ZNCC,
+  PROP_RELOCATE,
   PROP_POST_MESSAGES,
 };
 
@@ -154,6 +162,7 @@ struct Settings {
   double layer_centre_tolerance = DEFAULT_LAYER_CENTRE_TOLERANCE;
   double layer_min_zncc = DEFAULT_LAYER_MIN_ZNCC;
   double layer_centre_min_zncc = DEFAULT_LAYER_CENTRE_MIN_ZNCC;
+  int relocate = DEFAULT_RELOCATE;
   bool post_messages = DEFAULT_POST_MESSAGES;
   guint64 generation = 0; // bumped by every change that needs a new StereoMatcher
 };
@@ -293,6 +302,7 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   p.refine_params.layer_centre_tolerance = s.layer_centre_tolerance;
   p.refine_params.layer_min_zncc = s.layer_min_zncc;
   p.refine_params.layer_centre_min_zncc = s.layer_centre_min_zncc;
+  p.refine_params.relocate = s.relocate;
   p.parallel_detect = true;
   st->matcher = std::make_unique<StereoMatcher>(p);
   st->key = key;
@@ -545,6 +555,9 @@ static void gst_sift_match_set_property(GObject *object, guint prop_id, const GV
   case PROP_LAYER_SEARCH:
     s.layer_search = g_value_get_int(value);
     break;
+  case PROP_RELOCATE:
+    s.relocate = g_value_get_int(value);
+    break;
   case PROP_POST_MESSAGES:
     s.post_messages = g_value_get_boolean(value);
     return; // no new matcher needed
@@ -630,6 +643,9 @@ static void gst_sift_match_get_property(GObject *object, guint prop_id, GValue *
     break;
   case PROP_LAYER_SEARCH:
     g_value_set_int(value, s.layer_search);
+    break;
+  case PROP_RELOCATE:
+    g_value_set_int(value, s.relocate);
     break;
   case PROP_POST_MESSAGES:
     g_value_set_boolean(value, s.post_messages);
@@ -780,6 +796,14 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
                  "Two-layer test: the 3x3 centre's correlation at the refined disparity must "
                  "reach this; -1 = no minimum",
                  -1.0, 1.0, DEFAULT_LAYER_CENTRE_MIN_ZNCC);
+  g_object_class_install_property(
+      gobject_class, PROP_RELOCATE,
+      g_param_spec_int("relocate", "Relocate",
+                       "Refinement: move each match, by at most this many px, to the pixel its "
+                       "disparity belongs to (the one whose 3x3 patch agrees best with the right "
+                       "view at that disparity), e.g. off a dark gap between two near leaves "
+                       "onto a leaf; 0 = off (needs refine)",
+                       0, 3, DEFAULT_RELOCATE, PROP_FLAGS));
   install_boolean(gobject_class, PROP_POST_MESSAGES, "post-messages", "Post messages",
                   "Post a siftmatch element message per frame", DEFAULT_POST_MESSAGES);
 

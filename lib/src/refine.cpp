@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 
 namespace treestereo {
@@ -109,6 +110,62 @@ bool layers_agree(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr,
   return std::abs(peak) <= centre_tol && scores[std::size_t(range)] >= p.layer_centre_min_zncc;
 }
 
+// Sum of absolute differences of the left 3x3 patch at (x, y) and the right one at (x + dx, y),
+// dx sub-pixel (the right rows linearly interpolated).
+double sad3(const cv::Mat &L, const cv::Mat &R, int x, int y, double dx)
+{
+  double sad = 0;
+  for (int a = -1; a <= 1; ++a) {
+    const std::uint8_t *lrow = L.ptr<std::uint8_t>(y + a);
+    const std::uint8_t *rrow = R.ptr<std::uint8_t>(y + a);
+    for (int b = -1; b <= 1; ++b)
+      sad += std::abs(double(lrow[x + b]) - sample(rrow, double(x + b) + dx));
+  }
+  return sad;
+}
+
+// Relocation (RefineParams::relocate): of the left pixels within r px of (xi, yi), the one whose
+// 3x3 patch differs least from the right view at the disparity xi - xr, among those whose 3x3
+// correlates there (ZNCC >= 0.5 with its peak within 0.5 px), when it differs less than the
+// keypoint's own pixel does by more than kMinGain; else the keypoint stays, as it does when the
+// neighbourhood leaves the views.
+cv::Point relocated(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, int r,
+                    std::vector<double> &scores)
+{
+  constexpr int kSearch = 2; // the 3x3's own peak is searched within +-2 px
+  constexpr double kMinZncc = 0.5, kPeakTolerance = 0.5;
+  // A neighbour must beat the keypoint's own pixel by more than this (grey levels over the 9
+  // pixels): below it the difference is the interpolation at a sub-pixel disparity, and a match
+  // on one surface would wander for nothing.
+  constexpr double kMinGain = 2.0;
+  const cv::Point keep(xi, yi);
+  if (yi - r - 1 < 0 || yi + r + 1 >= L.rows || xi - r - 1 < 0 || xi + r + 1 >= L.cols ||
+      xr - r - 1 - kSearch - 1 < 0 || xr + r + 1 + kSearch + 1 >= R.cols)
+    return keep;
+  const double shift = xr - double(xi); // right x = left x + shift
+  cv::Point best = keep;
+  double best_sad = std::numeric_limits<double>::infinity();
+  // the keypoint's pixel first, so that a neighbour has to be strictly better
+  auto consider = [&](int x, int y) {
+    const double xr_here = double(x) + shift;
+    const double peak = sub_peak(L, R, x, y, xr_here, -1, 1, -1, 1, kSearch, scores);
+    if (!(std::abs(peak) <= kPeakTolerance) || scores[std::size_t(kSearch)] < kMinZncc)
+      return;
+    const double sad = sad3(L, R, x, y, shift);
+    if (sad < best_sad) {
+      best_sad = sad;
+      best = cv::Point(x, y);
+    }
+  };
+  consider(xi, yi);
+  const double own = best_sad;
+  for (int dy = -r; dy <= r; ++dy)
+    for (int dx = -r; dx <= r; ++dx)
+      if (dx != 0 || dy != 0)
+        consider(xi + dx, yi + dy);
+  return best_sad < own - kMinGain ? best : keep;
+}
+
 } // namespace
 
 void check_refine_params(const RefineParams &p)
@@ -129,6 +186,8 @@ void check_refine_params(const RefineParams &p)
         "refinement: layer_min_zncc and layer_centre_min_zncc must be <= 1 (-1 = no minimum)");
   if (!(p.min_zncc_drop >= 0 && p.min_zncc_drop <= 2))
     throw std::runtime_error("refinement: min_zncc_drop must be within 0..2 (0 = off)");
+  if (p.relocate < 0 || p.relocate > 3)
+    throw std::runtime_error("refinement: relocate must be within 0..3 px (0 = off)");
 }
 
 std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
@@ -163,6 +222,11 @@ std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
           continue;
       }
       const double d = double(xi) - xr;
+      if (p.relocate > 0) {
+        const cv::Point to = relocated(L, R, xi, yi, xr, p.relocate, scores);
+        m.xl += float(to.x - xi);
+        m.yl += float(to.y - yi);
+      }
       m.xr = float(double(m.xl) - d);
       m.yr = m.yl;
       keep[std::size_t(i)] = 1;

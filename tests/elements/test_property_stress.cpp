@@ -200,6 +200,7 @@ static std::vector<Knob> knobs(Rig &rig)
       {match, "min-depth", {"300", "500"}},
       {match, "max-depth", {"6000", "10000"}},
       {match, "mask-inset", {"0", "4", "8"}},
+      {match, "relocate", {"0", "1", "2"}},
       {depth, "mode", {"sparse", "dense"}},
       {depth, "min-depth", {"300", "500"}},
       {depth, "max-depth", {"6000", "10000"}},

@@ -443,6 +443,12 @@ GST_START_TEST(test_property_ranges)
   fail_unless_equals_int(G_PARAM_SPEC_INT(inset)->minimum, 0);
   fail_unless_equals_int(G_PARAM_SPEC_INT(inset)->maximum, 64);
   fail_unless_equals_int(G_PARAM_SPEC_INT(inset)->default_value, 4);
+  GParamSpec *reloc = g_object_class_find_property(klass, "relocate");
+  fail_unless(reloc != nullptr && G_IS_PARAM_SPEC_INT(reloc));
+  fail_unless(reloc->flags & GST_PARAM_MUTABLE_PLAYING);
+  fail_unless_equals_int(G_PARAM_SPEC_INT(reloc)->minimum, 0);
+  fail_unless_equals_int(G_PARAM_SPEC_INT(reloc)->maximum, 3);
+  fail_unless_equals_int(G_PARAM_SPEC_INT(reloc)->default_value, 1);
   GParamSpec *n = g_object_class_find_property(klass, "nfeatures");
   fail_unless_equals_int(G_PARAM_SPEC_INT(n)->minimum, 0);
   fail_unless_equals_int(G_PARAM_SPEC_INT(n)->default_value, 0);

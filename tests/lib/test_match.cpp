@@ -452,6 +452,46 @@ TEST(Refine, TwoLayerTestRejectsBackgroundPixelGivenTheForegroundDisparity)
   EXPECT_THROW(refine_matches(s.left, s.right, m, on), std::runtime_error);
 }
 
+// Relocation: a background pixel beside the band, matched at the band's disparity (its 7x7 patch
+// is dominated by the band's texture), moves onto the band, keeping the disparity; matches on one
+// surface stay where they are.
+TEST(Refine, RelocationMovesABackgroundPixelOntoTheLayerItsDisparityBelongsTo)
+{
+  const TwoLayers s;
+  const float y = 60;
+  for (const int r : {1, 2}) {
+    // the first background column with relocate 1, the second with 2: each within reach
+    const float bad_x = float(TwoLayers::kBand1 - 1 + r);
+    const std::vector<StereoMatch> input{
+        {bad_x, y, bad_x - float(TwoLayers::kFront), y, 0.f},
+        {120.f, y, 120.f - float(TwoLayers::kFront), y, 0.f},
+        {40.f, y, 40.f - float(TwoLayers::kBack), y, 0.f},
+        {200.f, y, 200.f - float(TwoLayers::kBack), y, 0.f},
+    };
+    RefineParams p;
+    std::vector<StereoMatch> m = input;
+    refine_matches(s.left, s.right, m, p); // relocate = 0: lib's default
+    ASSERT_EQ(m.size(), 4u);
+    EXPECT_EQ(m[0].xl, bad_x);
+    EXPECT_NEAR(m[0].disparity(), TwoLayers::kFront, 1.0);
+
+    p.relocate = r;
+    m = input;
+    EXPECT_EQ(refine_matches(s.left, s.right, m, p), 0u);
+    ASSERT_EQ(m.size(), 4u);
+    EXPECT_LT(m[0].xl, float(TwoLayers::kBand1)) << "relocate " << r; // on the band now
+    EXPECT_GE(m[0].xl, bad_x - float(r));
+    EXPECT_LE(std::abs(m[0].yl - y), float(r));
+    EXPECT_NEAR(m[0].disparity(), TwoLayers::kFront, 1.0); // the disparity is kept
+    EXPECT_EQ(m[0].yr, m[0].yl);
+    EXPECT_FLOAT_EQ(m[0].xl - m[0].xr, float(m[0].disparity()));
+    for (std::size_t i = 1; i < 4; ++i) { // inside one surface: nothing to move to
+      EXPECT_EQ(m[i].xl, input[i].xl) << "match " << i << ", relocate " << r;
+      EXPECT_EQ(m[i].yl, input[i].yl) << "match " << i << ", relocate " << r;
+    }
+  }
+}
+
 // A foreground rectangle at disparity `front` over a background at `back`, each with its own
 // texture attached to its surface (background contrast scaled by `back_contrast`): the right
 // pixel x sees the rectangle's point x + front when that lies in the rectangle, else the
@@ -612,6 +652,8 @@ TEST(Refine, RejectsInvalidFilterParameters)
   bad([](RefineParams &p) { p.layer_centre_min_zncc = std::nan(""); });
   bad([](RefineParams &p) { p.min_zncc_drop = -0.1; });
   bad([](RefineParams &p) { p.min_zncc_drop = std::nan(""); });
+  bad([](RefineParams &p) { p.relocate = -1; });
+  bad([](RefineParams &p) { p.relocate = 4; });
 }
 
 // The refinement windows follow the detection scale below 0.5 (a 2592 px wide view detected at

@@ -147,6 +147,17 @@ std::unique_ptr<Matcher> make_matcher(const MatcherParams &params);
 // it (another layer, or one hidden in the right view) correlates poorly there even when its peak
 // happens to lie close. On treetestsrc pairs they remove a third to a half of the wrong matches
 // the quadrant peaks leave, for 5-6% fewer matches; on Jadeplant 2 of 4 (docs/results.md).
+//
+// Last, relocation (relocate px; 0 = off here, 1 in siftmatch) moves each surviving match to the
+// pixel its disparity belongs to: of the pixels within relocate px (Chebyshev) of the keypoint,
+// the one whose own 3x3 patch differs least (sum of absolute differences, in grey levels) from
+// the right view at the refined disparity, among those whose 3x3 correlates there (ZNCC >= 0.5,
+// peak within 0.5 px), when it beats the keypoint's own pixel by more than 2 grey levels (the
+// interpolation noise of a sub-pixel disparity); else the match stays. The disparity is kept: it is the 7x7 window's, and the window's dominant texture
+// can belong to a neighbour. The wrong matches the two-layer test leaves on treetestsrc pairs
+// are nearly all of that kind: a pixel in a dark gap between two near leaves, where the leaf
+// behind shows, given the near leaves' disparity (1-4 px nearer than the truth). The move is at
+// most relocate px, so the 3D point hardly moves, but it now stands on the surface it measures.
 struct RefineParams {
   int half_window = 3;   // 7x7 patches: fewer straddle a depth edge than 11x11
   int search = 2;        // px around the estimate
@@ -159,6 +170,7 @@ struct RefineParams {
   double layer_centre_tolerance = -1; // px for the 3x3 centre; negative = layer_tolerance
   double layer_min_zncc = -1;         // quadrants' ZNCC at the refined position; -1 = no minimum
   double layer_centre_min_zncc = -1;  // the centre's; -1 = no minimum
+  int relocate = 0; // px (0..3): move a match to the neighbour its disparity belongs to; 0 = off
 };
 
 // Throws std::runtime_error when a value is out of range.
