@@ -413,6 +413,17 @@ struct TwoLayers {
                                            : back.at<std::uint8_t>(y, x + int(kBack));
       }
   }
+  // A background pixel at bad_x matched at the band's disparity, then good ones: the band's
+  // middle and the background far from the band, each at its own disparity.
+  static std::vector<StereoMatch> matches(float bad_x, float y)
+  {
+    return {
+        {bad_x, y, bad_x - float(kFront), y, 0.f},
+        {120.f, y, 120.f - float(kFront), y, 0.f},
+        {40.f, y, 40.f - float(kBack), y, 0.f},
+        {200.f, y, 200.f - float(kBack), y, 0.f},
+    };
+  }
 };
 
 TEST(Refine, TwoLayerTestRejectsBackgroundPixelGivenTheForegroundDisparity)
@@ -423,12 +434,7 @@ TEST(Refine, TwoLayerTestRejectsBackgroundPixelGivenTheForegroundDisparity)
   // disparity (the band's texture dominates its 7x7 patch). Good: the band's middle and the
   // background far from the band, each at its own disparity.
   const float bad_x = float(TwoLayers::kBand1) + 1;
-  const std::vector<StereoMatch> input{
-      {bad_x, y, bad_x - float(TwoLayers::kFront), y, 0.f},
-      {120.f, y, 120.f - float(TwoLayers::kFront), y, 0.f},
-      {40.f, y, 40.f - float(TwoLayers::kBack), y, 0.f},
-      {200.f, y, 200.f - float(TwoLayers::kBack), y, 0.f},
-  };
+  const std::vector<StereoMatch> input = TwoLayers::matches(bad_x, y);
   RefineParams off;
   std::vector<StereoMatch> m = input;
   refine_matches(s.left, s.right, m, off);
@@ -462,12 +468,7 @@ TEST(Refine, RelocationMovesABackgroundPixelOntoTheLayerItsDisparityBelongsTo)
   for (const int r : {1, 2}) {
     // the first background column with relocate 1, the second with 2: each within reach
     const float bad_x = float(TwoLayers::kBand1 - 1 + r);
-    const std::vector<StereoMatch> input{
-        {bad_x, y, bad_x - float(TwoLayers::kFront), y, 0.f},
-        {120.f, y, 120.f - float(TwoLayers::kFront), y, 0.f},
-        {40.f, y, 40.f - float(TwoLayers::kBack), y, 0.f},
-        {200.f, y, 200.f - float(TwoLayers::kBack), y, 0.f},
-    };
+    const std::vector<StereoMatch> input = TwoLayers::matches(bad_x, y);
     RefineParams p;
     std::vector<StereoMatch> m = input;
     refine_matches(s.left, s.right, m, p); // relocate = 0: lib's default
