@@ -36,5 +36,7 @@ for s in "$@"; do
   line=$(cat "$tmp/out.txt")
   kp=$(echo "$line" | sed -n 's/.*keypoints \([0-9]*\/[0-9]*\).*/\1/p')
   m=$(echo "$line" | sed -n 's/.*matches \([0-9]*\).*/\1/p')
-  echo "| ${s:-(siftmatch's defaults)} | $kp | $m | $(( (total - base) / runs / 1000000 )) |"
+  label=$s
+  [ -n "$label" ] || label="(siftmatch's defaults)" # not in \${s:-...}: bash would read the ' there
+  echo "| $label | $kp | $m | $(( (total - base) / runs / 1000000 )) |"
 done
