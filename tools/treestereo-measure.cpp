@@ -169,7 +169,7 @@ struct Job {
   std::ostream *csv = nullptr;
   guint64 frames = 0, present = 0;
   guint64 stop_after = 0; // live cameras: pairs to measure before ending the stream (0: all)
-  bool error = false, interrupted = false, stopping = false;
+  bool error = false, interrupted = false;
   std::chrono::steady_clock::time_point start;
 };
 
@@ -348,10 +348,10 @@ GstPadProbeReturn on_result(GstPad *, GstPadProbeInfo *info, gpointer data)
   job.frames++;
   if (mm && mm->metrics.tree_present)
     job.present++;
-  if (job.stop_after > 0 && job.frames == job.stop_after && !job.stopping) {
-    job.stopping = true; // streaming thread: the EOS is sent from the main loop
+  // reached once: every later buffer is dropped above. This is the streaming thread; the EOS is
+  // sent from the main loop.
+  if (job.stop_after > 0 && job.frames == job.stop_after)
     g_idle_add(send_eos, &job);
-  }
   return GST_PAD_PROBE_OK;
 }
 

@@ -385,7 +385,7 @@ TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
       // a dedent between two levels inside a value (refused, not known to hang)
       {"dedent.yml", "%YAML:1.0\nM1:\n   rows: 1\n A: 2\n",
        "line 4 is indented to a column no enclosing line has"},
-      // column-0 lines that are no keys
+      // column-0 lines that are no keys ("----~" counts as a '---' with text after it)
       {"hang2.yaml", "----~\n~\n-", "line 1 has text after the document marker '---'"},
       {"hang3.yml", "%YAML:1.0\n---\nimage_width: 640\n~\n-",
        "line 4 starts at column 0 but is no key"},
@@ -393,7 +393,8 @@ TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
       // OpenCV unchecked: compressed files are decompressed and checked like plain ones
       {"hang4.yml.gz", "%YAML:1.0\n   rows: 1\n A---\nx",
        "line 2 is indented, but a calibration file's top level starts at column 0"},
-      // an indented "-" after the document's end "..." (the sixth session's CI run)
+      // an indented "-" after the document's end "..." (the class of the fifth session's CI
+      // timeout)
       {"hang5.yml", "%YAML:1.0\na: 1\n...\n  - 1\n",
        "line 4 follows the end of the document ('...' on line 3)"},
       {"hang6.yml", "%YAML:1.0\na: {b: 1}\n... \n -\n",

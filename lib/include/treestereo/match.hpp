@@ -153,8 +153,8 @@ std::unique_ptr<Matcher> make_matcher(const MatcherParams &params);
 // the one whose own 3x3 patch differs least (sum of absolute differences, in grey levels) from
 // the right view at the refined disparity, among those whose 3x3 correlates there (ZNCC >= 0.5,
 // peak within 0.5 px), when it beats the keypoint's own pixel by more than 2 grey levels (the
-// interpolation noise of a sub-pixel disparity); else the match stays. The disparity is kept: it is the 7x7 window's, and the window's dominant texture
-// can belong to a neighbour. The wrong matches the two-layer test leaves on treetestsrc pairs
+// interpolation noise of a sub-pixel disparity); else the match stays. The disparity is kept:
+// it is the 7x7 window's, and the window's dominant texture can belong to a neighbour. The wrong matches the two-layer test leaves on treetestsrc pairs
 // are nearly all of that kind: a pixel in a dark gap between two near leaves, where the leaf
 // behind shows, given the near leaves' disparity (1-4 px nearer than the truth). The move is at
 // most relocate px, so the 3D point hardly moves, but it now stands on the surface it measures.
