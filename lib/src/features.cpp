@@ -70,7 +70,8 @@ cv::Rect detection_region(const cv::Size &view_size, const cv::Mat &mask, int ma
   return box & whole;
 }
 
-FeatureDetector::FeatureDetector(const DetectParams &params) : params_(params)
+namespace {
+const DetectParams &checked(const DetectParams &params)
 {
   if (!(params.scale > 0.0 && params.scale <= 1.0))
     throw std::runtime_error("feature detection: scale must be in (0, 1], got " +
@@ -83,7 +84,15 @@ FeatureDetector::FeatureDetector(const DetectParams &params) : params_(params)
     throw std::runtime_error("feature detection: roi_margin must be >= 0");
   if (params.mask_inset < 0)
     throw std::runtime_error("feature detection: mask_inset must be >= 0");
-  // Default layers (3), edge threshold (10) and sigma (1.6); float descriptors for the matchers.
+  return params;
+}
+} // namespace
+
+// Both engines: 3 layers per octave, sigma 1.6, edge threshold 10 (OpenCV's defaults).
+FeatureDetector::FeatureDetector(const DetectParams &params)
+    : params_(checked(params)), upright_(SiftParams{3, 1.6, params.contrast_threshold, 10.0})
+{
+  // Float descriptors for the matchers.
   sift_ = cv::SIFT::create(params.nfeatures, 3, params.contrast_threshold, 10.0, 1.6, CV_32F);
   if (params.mask_inset > 0) {
     const int d = 2 * params.mask_inset + 1;
@@ -91,11 +100,12 @@ FeatureDetector::FeatureDetector(const DetectParams &params) : params_(params)
   }
 }
 
-Features FeatureDetector::detect(const cv::Mat &view, const cv::Mat &mask) const
+LocatedFeatures FeatureDetector::locate(const cv::Mat &view, const cv::Mat &mask) const
 {
   const auto t0 = std::chrono::steady_clock::now();
   const cv::Mat gray = to_gray8(view);
-  Features f;
+  LocatedFeatures located;
+  Features &f = located.features;
   f.scale = params_.scale;
   const bool masked = params_.use_mask && !mask.empty();
   f.region = (masked && params_.roi) ? detection_region(gray.size(), mask, params_.roi_margin)
@@ -119,24 +129,49 @@ Features FeatureDetector::detect(const cv::Mat &view, const cv::Mat &mask) const
       cv::erode(m, eroded, inset_kernel_);
       m = eroded;
     }
-    // An empty Mat is OpenCV's "no mask".
-    sift_->detectAndCompute(img, m, f.keypoints, f.descriptors);
-    // SIFT upsamples with cv::resize (pixel-centre aligned: U(i) = I(i/2 - 0.25)) but maps back
-    // by halving the coordinate, so every octave reports positions +0.25 px off (what OpenCV
-    // >= 4.8's enable_precise_upscale fixes). Then pixel centres: resized pixel i covers
-    // [i/s, (i+1)/s) of the crop.
-    constexpr float kSiftBias = 0.25f;
+    // OpenCV's SIFT upsamples with cv::resize (pixel-centre aligned: U(i) = I(i/2 - 0.25)) but
+    // maps back by halving the coordinate, so every octave reports positions +0.25 px off (what
+    // OpenCV >= 4.8's enable_precise_upscale fixes); the upright engine has no such offset.
+    float bias = 0.f;
+    if (params_.engine == SiftEngine::Upright) {
+      located.detection_kps = upright_.detect(img, m, located.pyramid);
+      if (params_.nfeatures > 0 && int(located.detection_kps.size()) > params_.nfeatures)
+        cv::KeyPointsFilter::retainBest(located.detection_kps, params_.nfeatures);
+      f.keypoints = located.detection_kps;
+    } else {
+      // An empty Mat is OpenCV's "no mask".
+      sift_->detectAndCompute(img, m, f.keypoints, f.descriptors);
+      bias = 0.25f;
+    }
+    // Pixel centres: resized pixel i covers [i/s, (i+1)/s) of the crop.
     const float inv = float(1.0 / params_.scale);
     for (cv::KeyPoint &kp : f.keypoints) {
-      kp.pt.x = (kp.pt.x - kSiftBias + 0.5f) * inv - 0.5f + float(f.region.x);
-      kp.pt.y = (kp.pt.y - kSiftBias + 0.5f) * inv - 0.5f + float(f.region.y);
+      kp.pt.x = (kp.pt.x - bias + 0.5f) * inv - 0.5f + float(f.region.x);
+      kp.pt.y = (kp.pt.y - bias + 0.5f) * inv - 0.5f + float(f.region.y);
       kp.size *= inv;
     }
   }
+  f.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return located;
+}
+
+Features FeatureDetector::describe(LocatedFeatures &&located, const std::vector<char> &needed) const
+{
+  const auto t0 = std::chrono::steady_clock::now();
+  Features f = std::move(located.features);
+  if (!needed.empty() && needed.size() != f.keypoints.size())
+    throw std::runtime_error("feature description: one 'needed' flag per keypoint expected");
+  if (params_.engine == SiftEngine::Upright)
+    f.descriptors = upright_.describe(located.pyramid, located.detection_kps, needed);
   if (f.descriptors.empty())
     f.descriptors.create(0, 128, CV_32F);
-  f.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  f.ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return f;
+}
+
+Features FeatureDetector::detect(const cv::Mat &view, const cv::Mat &mask) const
+{
+  return describe(locate(view, mask));
 }
 
 Features detect_features(const cv::Mat &view, const cv::Mat &mask, const DetectParams &params)

@@ -81,13 +81,15 @@ public:
         rows_[std::size_t(r)].push_back(int(j));
     }
   }
+  // f(j) for the keypoints of the rows within tol of y, until f returns false.
   template <class F> void for_each_near(float y, double tol, F &&f) const
   {
     const int r0 = std::max(0, int(std::floor(double(y) - tol)));
     const int r1 = std::min(int(rows_.size()) - 1, int(std::floor(double(y) + tol)));
     for (int r = r0; r <= r1; ++r)
       for (int j : rows_[std::size_t(r)])
-        f(j);
+        if (!f(j))
+          return;
   }
 
 private:
@@ -101,6 +103,33 @@ struct Side {
   bool is_left;
 };
 
+enum class Pairing : std::uint8_t { OutOfBand, OutOfRange, Candidate };
+
+// Whether target keypoint `t` may be the match of query keypoint `q` under the constraints.
+Pairing pairing(const cv::Point2f &q, const cv::Point2f &t, bool query_is_left,
+                const StereoConstraints &c)
+{
+  if (c.epipolar_tolerance >= 0 && std::abs(double(t.y) - double(q.y)) > c.epipolar_tolerance)
+    return Pairing::OutOfBand;
+  const double d = query_is_left ? double(q.x) - t.x : double(t.x) - q.x;
+  return d >= c.min_disparity && d <= c.max_disparity ? Pairing::Candidate : Pairing::OutOfRange;
+}
+
+// Calls f(j) for the target keypoints that can pass the epipolar band of `q` (all of them when
+// the band is off), until f returns false.
+template <class F>
+void for_each_in_band(const cv::KeyPoint &q, const std::vector<cv::KeyPoint> &tk,
+                      const RowIndex &index, const StereoConstraints &c, F &&f)
+{
+  if (c.epipolar_tolerance >= 0) {
+    index.for_each_near(q.pt.y, c.epipolar_tolerance, f);
+  } else {
+    for (int j = 0; j < int(tk.size()); ++j)
+      if (!f(j))
+        return;
+  }
+}
+
 // Indices of target keypoints that satisfy the stereo constraints for query keypoint `q`.
 Outcome gather_candidates(const cv::KeyPoint &q, const Side &query, const Side &target,
                           const RowIndex &index, const StereoConstraints &c, std::vector<int> &out)
@@ -108,21 +137,13 @@ Outcome gather_candidates(const cv::KeyPoint &q, const Side &query, const Side &
   out.clear();
   const auto &tk = target.f->keypoints;
   bool any_in_band = false;
-  auto consider = [&](int j) {
-    const cv::Point2f &t = tk[std::size_t(j)].pt;
-    if (c.epipolar_tolerance >= 0 && std::abs(double(t.y) - double(q.pt.y)) > c.epipolar_tolerance)
-      return;
-    any_in_band = true;
-    const double d = query.is_left ? double(q.pt.x) - t.x : double(t.x) - q.pt.x;
-    if (d >= c.min_disparity && d <= c.max_disparity)
+  for_each_in_band(q, tk, index, c, [&](int j) {
+    const Pairing p = pairing(q.pt, tk[std::size_t(j)].pt, query.is_left, c);
+    any_in_band |= p != Pairing::OutOfBand;
+    if (p == Pairing::Candidate)
       out.push_back(j);
-  };
-  if (c.epipolar_tolerance >= 0) {
-    index.for_each_near(q.pt.y, c.epipolar_tolerance, consider);
-  } else {
-    for (int j = 0; j < int(tk.size()); ++j)
-      consider(j);
-  }
+    return true;
+  });
   if (!any_in_band)
     return Outcome::NoEpipolar;
   return out.empty() ? Outcome::NoDisparity : Outcome::Matched;
@@ -269,6 +290,24 @@ std::vector<StereoMatch> match_with(const Features &left, const Features &right,
   return matches;
 }
 
+// For each keypoint of `query`: does any keypoint of `target` pass the constraints with it? The
+// relation is symmetric, so a keypoint without one is nobody's candidate either: the matchers
+// never read its descriptor.
+std::vector<char> has_candidate(const std::vector<cv::KeyPoint> &query, bool query_is_left,
+                                const std::vector<cv::KeyPoint> &target,
+                                const StereoConstraints &c)
+{
+  const RowIndex index(target);
+  std::vector<char> out(query.size(), 0);
+  for (std::size_t i = 0; i < query.size(); ++i)
+    for_each_in_band(query[i], target, index, c, [&](int j) {
+      out[i] = pairing(query[i].pt, target[std::size_t(j)].pt, query_is_left, c) ==
+               Pairing::Candidate;
+      return !out[i];
+    });
+  return out;
+}
+
 void check_matcher_params(const MatcherParams &p)
 {
   if (!(p.ratio > 0))
@@ -349,27 +388,48 @@ StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,
     throw std::runtime_error("stereo matching: refinement needs two views of the same size");
   StereoMatchResult res;
   auto t0 = std::chrono::steady_clock::now();
-  // Grey once per view, for detection and for refinement, in the view's own thread.
+  // Grey once per view, for detection and for refinement, in the view's own thread. Then, with
+  // the upright engine, descriptors only for keypoints with a candidate in the other view.
+  const bool prune = params_.detect.engine == SiftEngine::Upright;
+  const StereoConstraints &c = params_.matcher.constraints;
+  auto needed = [&](const LocatedFeatures &a, const LocatedFeatures &b, bool a_is_left) {
+    return prune ? has_candidate(a.features.keypoints, a_is_left, b.features.keypoints, c)
+                 : std::vector<char>();
+  };
   Features fl, fr;
   cv::Mat gl, gr;
   if (params_.parallel_detect) {
     auto right_job = worker_->run([&] {
       gr = to_gray8(right);
-      return detector_[RIGHT].detect(gr, mask_right);
+      return detector_[RIGHT].locate(gr, mask_right);
     });
+    LocatedFeatures ll, lr;
     try {
       gl = to_gray8(left);
-      fl = detector_[LEFT].detect(gl, mask_left);
+      ll = detector_[LEFT].locate(gl, mask_left);
     } catch (...) {
       right_job.wait(); // it reads the caller's views and writes gr
       throw;
     }
-    fr = right_job.get();
+    lr = right_job.get();
+    const std::vector<char> need_l = needed(ll, lr, true), need_r = needed(lr, ll, false);
+    auto describe_right = worker_->run(
+        [&] { return detector_[RIGHT].describe(std::move(lr), need_r); });
+    try {
+      fl = detector_[LEFT].describe(std::move(ll), need_l);
+    } catch (...) {
+      describe_right.wait();
+      throw;
+    }
+    fr = describe_right.get();
   } else {
     gl = to_gray8(left);
-    fl = detector_[LEFT].detect(gl, mask_left);
     gr = to_gray8(right);
-    fr = detector_[RIGHT].detect(gr, mask_right);
+    LocatedFeatures ll = detector_[LEFT].locate(gl, mask_left);
+    LocatedFeatures lr = detector_[RIGHT].locate(gr, mask_right);
+    const std::vector<char> need_l = needed(ll, lr, true), need_r = needed(lr, ll, false);
+    fl = detector_[LEFT].describe(std::move(ll), need_l);
+    fr = detector_[RIGHT].describe(std::move(lr), need_r);
   }
   res.stats.detect_ms = ms_since(t0);
   res.stats.keypoints = {{fl.size(), fr.size()}};

@@ -257,15 +257,17 @@ TEST(Features, ScaledDetectionMapsKeypointsBackToFullResolution)
       const double r2 = (x - 100.0) * (x - 100.0) + (y - 80.0) * (y - 80.0);
       img.at<std::uint8_t>(y, x) = cv::saturate_cast<std::uint8_t>(220 - 180 * std::exp(-r2 / (2 * 36.0)));
     }
-  for (double scale : {1.0, 0.5}) {
-    DetectParams p;
-    p.scale = scale;
-    const Features f = detect_features(img, cv::Mat(), p);
-    double best = 1e9;
-    for (const cv::KeyPoint &k : f.keypoints)
-      best = std::min(best, std::hypot(k.pt.x - 100.0, k.pt.y - 80.0));
-    EXPECT_LT(best, 0.2) << "scale " << scale;
-  }
+  for (SiftEngine engine : {SiftEngine::OpenCV, SiftEngine::Upright})
+    for (double scale : {1.0, 0.5}) {
+      DetectParams p;
+      p.engine = engine;
+      p.scale = scale;
+      const Features f = detect_features(img, cv::Mat(), p);
+      double best = 1e9;
+      for (const cv::KeyPoint &k : f.keypoints)
+        best = std::min(best, std::hypot(k.pt.x - 100.0, k.pt.y - 80.0));
+      EXPECT_LT(best, 0.2) << "scale " << scale << ", upright " << (engine == SiftEngine::Upright);
+    }
 }
 
 TEST(Features, MaskAndRegionLimitDetection)
@@ -273,13 +275,20 @@ TEST(Features, MaskAndRegionLimitDetection)
   const cv::Mat img = texture(cv::Size(320, 240), 11);
   cv::Mat mask = cv::Mat::zeros(img.size(), CV_8U);
   mask(cv::Rect(100, 60, 80, 70)).setTo(255);
+  for (SiftEngine engine : {SiftEngine::OpenCV, SiftEngine::Upright}) {
+    DetectParams p;
+    p.engine = engine;
+    const Features f = detect_features(img, mask, p);
+    ASSERT_GT(f.size(), 10u);
+    EXPECT_EQ(f.descriptors.rows, int(f.size()));
+    EXPECT_EQ(f.region, cv::Rect(100 - 16, 60 - 16, 80 + 32, 70 + 32));
+    // OpenCV's SIFT tests the mask 0.25 px off the position it reports (features.cpp)
+    const float bias = engine == SiftEngine::OpenCV ? 0.25f : 0.f;
+    for (const cv::KeyPoint &k : f.keypoints)
+      EXPECT_EQ(mask.at<std::uint8_t>(cvRound(k.pt.y + bias), cvRound(k.pt.x + bias)), 255);
+    EXPECT_EQ(detect_features(img, cv::Mat::zeros(img.size(), CV_8U), p).size(), 0u);
+  }
   DetectParams p;
-  const Features f = detect_features(img, mask, p);
-  ASSERT_GT(f.size(), 10u);
-  EXPECT_EQ(f.region, cv::Rect(100 - 16, 60 - 16, 80 + 32, 70 + 32));
-  for (const cv::KeyPoint &k : f.keypoints)
-    EXPECT_EQ(mask.at<std::uint8_t>(cvRound(k.pt.y), cvRound(k.pt.x)), 255);
-  EXPECT_EQ(detect_features(img, cv::Mat::zeros(img.size(), CV_8U), p).size(), 0u);
   EXPECT_THROW(detect_features(img, cv::Mat::zeros(10, 10, CV_8U), p), std::runtime_error);
   EXPECT_THROW(detect_features(cv::Mat(10, 10, CV_32F), cv::Mat(), p), std::runtime_error);
 }
@@ -337,27 +346,95 @@ TEST(Features, MaskInsetKeepsKeypointsOffTheCanopysEdge)
   EXPECT_THROW(FeatureDetector{bad}, std::runtime_error);
 }
 
+// The upright engine in two steps: describe() computes the flagged keypoints' descriptors, the
+// same as describing all, and leaves the others at zero.
+TEST(Features, UprightDescribesOnlyTheKeypointsItIsAskedFor)
+{
+  const cv::Mat img = texture(cv::Size(320, 240), 5);
+  DetectParams p;
+  p.engine = SiftEngine::Upright;
+  const FeatureDetector det(p);
+  const Features all = det.detect(img);
+  ASSERT_GT(all.size(), 20u);
+  LocatedFeatures located = det.locate(img);
+  ASSERT_EQ(located.features.size(), all.size());
+  std::vector<char> needed(all.size(), 0);
+  for (std::size_t i = 0; i < needed.size(); i += 3)
+    needed[i] = 1;
+  const Features some = det.describe(std::move(located), needed);
+  ASSERT_EQ(some.descriptors.rows, all.descriptors.rows);
+  for (int i = 0; i < all.descriptors.rows; ++i) {
+    EXPECT_EQ(some.keypoints[std::size_t(i)].pt, all.keypoints[std::size_t(i)].pt);
+    if (needed[std::size_t(i)])
+      EXPECT_EQ(cv::norm(some.descriptors.row(i), all.descriptors.row(i), cv::NORM_INF), 0.0);
+    else
+      EXPECT_EQ(cv::countNonZero(some.descriptors.row(i)), 0);
+  }
+  EXPECT_THROW(det.describe(det.locate(img), std::vector<char>(3, 1)), std::runtime_error);
+}
+
+// StereoMatcher with the upright engine describes only keypoints that have a candidate in the
+// other view (the relation is symmetric: the others are nobody's candidate). The matches are
+// those of describing every keypoint, on a pair where many keypoints have no candidate.
+TEST(StereoMatcher, UprightPruningChangesNoMatch)
+{
+  const double d_true = 9.4;
+  const cv::Mat left = texture(cv::Size(480, 360), 41);
+  cv::Mat right = shift_left(left, d_true);
+  right(cv::Rect(0, 0, 480, 150)).setTo(128); // the left view's top has no partner
+  for (MatchMethod method : {MatchMethod::Euclidean, MatchMethod::CosineNorm}) {
+    MatchParams p;
+    p.detect.engine = SiftEngine::Upright;
+    p.matcher.method = method;
+    p.matcher.constraints.min_disparity = 5;
+    p.matcher.constraints.max_disparity = 14;
+    p.refine = false;
+    const StereoMatchResult r = StereoMatcher(p).run(left, right, cv::Mat(), cv::Mat());
+    const FeatureDetector det(p.detect);
+    const Features fl = det.detect(left), fr = det.detect(right);
+    MatchStats st;
+    const std::vector<StereoMatch> ref = make_matcher(p.matcher)->match(fl, fr, st);
+    EXPECT_EQ(r.stats.keypoints[0], fl.size());
+    EXPECT_EQ(r.stats.keypoints[1], fr.size());
+    EXPECT_GT(st.rejected_epipolar + st.rejected_disparity, fl.size() / 4); // pruned in r
+    EXPECT_EQ(r.stats.rejected_epipolar, st.rejected_epipolar);
+    EXPECT_EQ(r.stats.rejected_disparity, st.rejected_disparity);
+    ASSERT_EQ(r.matches.size(), ref.size());
+    ASSERT_GT(ref.size(), 50u);
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+      EXPECT_EQ(r.matches[i].xl, ref[i].xl);
+      EXPECT_EQ(r.matches[i].yl, ref[i].yl);
+      EXPECT_EQ(r.matches[i].xr, ref[i].xr);
+      EXPECT_EQ(r.matches[i].yr, ref[i].yr);
+    }
+  }
+}
+
 TEST(Refine, RecoversSubPixelShift)
 {
   const double d_true = 12.37;
   const cv::Mat left = texture(cv::Size(480, 360), 21);
   const cv::Mat right = shift_left(left, d_true);
-  MatchParams p;
-  p.matcher.method = MatchMethod::Euclidean;
-  p.matcher.constraints.min_disparity = 0;
-  p.matcher.constraints.max_disparity = 40;
-  p.refine = false;
-  const StereoMatchResult raw = match_stereo(left, right, cv::Mat(), cv::Mat(), p);
-  p.refine = true;
-  const StereoMatchResult r = match_stereo(left, right, cv::Mat(), cv::Mat(), p);
-  ASSERT_GT(r.matches.size(), 100u);
-  const double err = median_abs_error(r.matches, d_true);
-  std::cout << "refined: " << r.matches.size() << " matches, median |error| " << err
-            << " px (unrefined " << median_abs_error(raw.matches, d_true) << " px), rejected "
-            << r.stats.rejected_refine << "\n";
-  EXPECT_LT(err, 0.1);
-  for (const StereoMatch &m : r.matches)
-    EXPECT_EQ(m.yr, m.yl);
+  for (SiftEngine engine : {SiftEngine::OpenCV, SiftEngine::Upright}) {
+    MatchParams p;
+    p.detect.engine = engine;
+    p.matcher.method = MatchMethod::Euclidean;
+    p.matcher.constraints.min_disparity = 0;
+    p.matcher.constraints.max_disparity = 40;
+    p.refine = false;
+    const StereoMatchResult raw = match_stereo(left, right, cv::Mat(), cv::Mat(), p);
+    p.refine = true;
+    const StereoMatchResult r = match_stereo(left, right, cv::Mat(), cv::Mat(), p);
+    ASSERT_GT(r.matches.size(), 100u);
+    const double err = median_abs_error(r.matches, d_true);
+    std::cout << "refined (upright " << (engine == SiftEngine::Upright) << "): " << r.matches.size()
+              << " matches, median |error| " << err << " px (unrefined "
+              << median_abs_error(raw.matches, d_true) << " px), rejected "
+              << r.stats.rejected_refine << "\n";
+    EXPECT_LT(err, 0.1);
+    for (const StereoMatch &m : r.matches)
+      EXPECT_EQ(m.yr, m.yl);
+  }
 }
 
 TEST(Refine, HalfScaleDetectionKeepsFullResolutionPrecision)

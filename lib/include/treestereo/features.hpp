@@ -2,6 +2,7 @@
 // vegetation's bounding box and optionally on a downscaled copy, reported at full resolution.
 #pragma once
 
+#include "treestereo/sift.hpp"
 #include "treestereo/types.hpp"
 
 #include <opencv2/core.hpp>
@@ -11,7 +12,12 @@
 
 namespace treestereo {
 
+// Which SIFT runs: OpenCV 4.6's (one descriptor per dominant orientation) or the project's own
+// upright SIFT (sift.hpp: one descriptor per place, at angle 0, the pyramid built once).
+enum class SiftEngine { OpenCV, Upright };
+
 struct DetectParams {
+  SiftEngine engine = SiftEngine::OpenCV;
   int nfeatures = 0;                 // keep the N strongest per view; 0 = all
   double contrast_threshold = 0.04;  // SIFT's contrastThreshold (Lowe: 0.03 on [0,1] / 3 layers)
   double scale = 1.0;                // detect on the view resized by this factor, (0, 1]
@@ -49,6 +55,14 @@ cv::Mat to_gray8(const cv::Mat &view, const ChannelOrder &order);
 // the mask has no non-zero pixel.
 cv::Rect detection_region(const cv::Size &view_size, const cv::Mat &mask, int margin);
 
+// Features found but not all described yet (FeatureDetector::locate): the upright engine keeps its
+// pyramid and its keypoints in the detection image's coordinates for describe().
+struct LocatedFeatures {
+  Features features;                       // keypoints set; descriptors only from OpenCV's engine
+  SiftPyramid pyramid;                     // the upright engine's
+  std::vector<cv::KeyPoint> detection_kps; // the upright engine's, in the detection image
+};
+
 // One SIFT detector, created once and reused for every frame.
 //
 // Speed notes (OpenCV 4.6): SIFT always starts one octave below the input (firstOctave = -1,
@@ -65,11 +79,20 @@ public:
   // CV_8U of the view's size. Throws std::runtime_error on bad input.
   Features detect(const cv::Mat &view, const cv::Mat &mask = cv::Mat()) const;
 
+  // The same in two steps, so that a caller can skip the descriptors of keypoints it will not
+  // use (those without a candidate in the other view): locate() finds the keypoints; describe()
+  // computes the descriptors of the keypoints whose `needed` entry is non-zero (all when
+  // `needed` is empty) and gives the others a row of zeros. OpenCV's engine describes every
+  // keypoint in locate() (its API cannot describe later without building the pyramid again).
+  LocatedFeatures locate(const cv::Mat &view, const cv::Mat &mask = cv::Mat()) const;
+  Features describe(LocatedFeatures &&located, const std::vector<char> &needed = {}) const;
+
   const DetectParams &params() const { return params_; }
 
 private:
   DetectParams params_;
-  cv::Ptr<cv::SIFT> sift_;
+  cv::Ptr<cv::SIFT> sift_;      // the OpenCV engine
+  UprightSift upright_;         // the upright engine
   cv::Mat inset_kernel_; // a disc of radius mask_inset; empty when it is 0
 };
 
