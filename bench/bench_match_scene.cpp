@@ -15,7 +15,7 @@
 // --set changes the settings of the "two-layer test on" rows (keys: min-zncc, min-zncc-drop,
 // layer-tolerance, layer-half-window, layer-search, layer-centre-tolerance, layer-min-zncc,
 // layer-centre-min-zncc, relocate, half-window, search, scale, nfeatures, contrast-threshold,
-// mask-inset, ratio, epipolar-tolerance, mutual), to explore other values. --mask: the row and
+// mask-inset, upright (1: the project's upright SIFT), ratio, epipolar-tolerance, mutual), to explore other values. --mask: the row and
 // errors modes detect inside each view's rendered canopy mask, as siftmatch does behind
 // exgsegment (default: whole views, as Table 1). --only step runs just the siftmatch step on the timing pair (1296x972,
 // canopy mask) --runs times on one OpenCV thread, for instruction counts under callgrind
@@ -107,8 +107,9 @@ void detection_defaults(MatchParams &p)
 {
   p.detect.contrast_threshold = 0.035;
   p.detect.mask_inset = 4; // only acts with a mask
+  p.detect.engine = SiftEngine::Upright;
 }
-constexpr const char *kDetection = "contrast-threshold=0.035, mask-inset=4 (with a mask)";
+constexpr const char *kDetection = "contrast-threshold=0.035, mask-inset=4 (with a mask), upright";
 
 // The "two-layer test on" rows: siftmatch's defaults for the refinement's filters.
 void filters_on(MatchParams &p)
@@ -158,6 +159,7 @@ void apply_set(MatchParams &p, const std::string &set)
     else if (k == "nfeatures") p.detect.nfeatures = int(v);
     else if (k == "contrast-threshold") p.detect.contrast_threshold = v;
     else if (k == "mask-inset") p.detect.mask_inset = int(v);
+    else if (k == "upright") p.detect.engine = v != 0 ? SiftEngine::Upright : SiftEngine::OpenCV;
     else if (k == "ratio") p.matcher.ratio = v;
     else if (k == "epipolar-tolerance") p.matcher.constraints.epipolar_tolerance = v;
     else if (k == "mutual") p.matcher.constraints.mutual = v != 0;
