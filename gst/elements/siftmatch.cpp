@@ -47,6 +47,15 @@
  * treetestsrc pairs at 1.6/2.0/2.4 m it takes the correct rate from 99.33% to 99.56% with the
  * same matches (docs/elements/siftmatch.md).
  *
+ * Keypoints come from treestereo's own SIFT (#siftmatch:upright, default on): Lowe's detector
+ * as OpenCV 4.6 runs it (the same places and scales), but each place described once, at angle 0,
+ * since on rectified views the rows are the epipolar lines and no orientation is needed, and only
+ * the keypoints that have a candidate in the other view. On the 1296x972 timing pair that is 493
+ * against 881 M instructions a step (39.0 against 62.7 ms, medians of three runs) for the same
+ * correct rates on treetestsrc pairs; Jadeplant 97.4% against 98.2% (one more wrong match of 114;
+ * cosine-norm 100% against 98.0%). upright=false runs OpenCV's SIFT, one descriptor per
+ * dominant orientation (docs/elements/siftmatch.md).
+ *
  * A buffer without the geometry meta, or a stream that is not side by side, is an error.
  *
  * ## Example launch line
@@ -90,6 +99,7 @@ using namespace treestereo;
 #define DEFAULT_CONTRAST_THRESHOLD 0.035
 #define DEFAULT_SCALE 0.0
 #define DEFAULT_USE_MASK TRUE
+#define DEFAULT_UPRIGHT TRUE
 #define DEFAULT_MASK_INSET 4
 #define DEFAULT_REFINE TRUE
 #define DEFAULT_MIN_ZNCC 0.9
@@ -122,6 +132,7 @@ enum {
   PROP_CONTRAST_THRESHOLD,
   PROP_SCALE,
   PROP_USE_MASK,
+  PROP_UPRIGHT,
   PROP_MASK_INSET,
   PROP_REFINE,
   PROP_MIN_ZNCC,
@@ -152,6 +163,7 @@ struct Settings {
   double contrast_threshold = DEFAULT_CONTRAST_THRESHOLD;
   double scale = DEFAULT_SCALE;
   bool use_mask = DEFAULT_USE_MASK;
+  bool upright = DEFAULT_UPRIGHT;
   int mask_inset = DEFAULT_MASK_INSET;
   bool refine = DEFAULT_REFINE;
   double min_zncc = DEFAULT_MIN_ZNCC;
@@ -284,6 +296,7 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   p.detect.contrast_threshold = s.contrast_threshold;
   p.detect.scale = key.scale;
   p.detect.use_mask = s.use_mask;
+  p.detect.engine = s.upright ? SiftEngine::Upright : SiftEngine::OpenCV;
   p.detect.mask_inset = s.mask_inset;
   p.matcher.method = s.method == GST_TREE_STEREO_MATCH_COSINE_NORM ? MatchMethod::CosineNorm
                                                                    : MatchMethod::Euclidean;
@@ -525,6 +538,9 @@ static void gst_sift_match_set_property(GObject *object, guint prop_id, const GV
   case PROP_USE_MASK:
     s.use_mask = g_value_get_boolean(value);
     break;
+  case PROP_UPRIGHT:
+    s.upright = g_value_get_boolean(value);
+    break;
   case PROP_MASK_INSET:
     s.mask_inset = g_value_get_int(value);
     break;
@@ -613,6 +629,9 @@ static void gst_sift_match_get_property(GObject *object, guint prop_id, GValue *
     break;
   case PROP_USE_MASK:
     g_value_set_boolean(value, s.use_mask);
+    break;
+  case PROP_UPRIGHT:
+    g_value_set_boolean(value, s.upright);
     break;
   case PROP_MASK_INSET:
     g_value_set_int(value, s.mask_inset);
@@ -743,6 +762,12 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
   install_boolean(gobject_class, PROP_USE_MASK, "use-mask", "Use mask",
                   "Detect only inside the canopy of the vegetation meta (when there is one)",
                   DEFAULT_USE_MASK);
+  install_boolean(gobject_class, PROP_UPRIGHT, "upright", "Upright",
+                  "Describe each keypoint once, at angle 0, with treestereo's own SIFT (on "
+                  "rectified views the rows are the epipolar lines: no orientation is needed), "
+                  "and only those with a candidate in the other view; false: OpenCV's SIFT, one "
+                  "descriptor per dominant orientation",
+                  DEFAULT_UPRIGHT);
   g_object_class_install_property(
       gobject_class, PROP_MASK_INSET, g_param_spec_int(
           "mask-inset", "Mask inset",

@@ -201,6 +201,7 @@ static std::vector<Knob> knobs(Rig &rig)
       {match, "max-depth", {"6000", "10000"}},
       {match, "mask-inset", {"0", "4", "8"}},
       {match, "relocate", {"0", "1", "2"}},
+      {match, "upright", {"true", "false"}},
       {depth, "mode", {"sparse", "dense"}},
       {depth, "min-depth", {"300", "500"}},
       {depth, "max-depth", {"6000", "10000"}},

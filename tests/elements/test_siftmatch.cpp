@@ -161,12 +161,13 @@ GstTreeStereoMatchStats pop_stats(GstBus *bus, GstTreeStereoTimes *times)
   return st;
 }
 
-/* Pushes the synthetic pair and checks matches, meta and message against the truth. */
-void check_synthetic(const char *format)
+/* Pushes the synthetic pair through siftmatch with @props (or the defaults) and checks matches,
+ * meta and message against the truth. Returns the left view's keypoint count. */
+guint check_synthetic(const char *format, const char *props = nullptr)
 {
   cv::Mat l, r;
   make_pair(D_TRUE, l, r);
-  Rig rig = rig_setup(format, W, H, nullptr);
+  Rig rig = rig_setup(format, W, H, props);
   GstBuffer *in = side_by_side(format, l, r, 120 * GST_MSECOND);
   add_geometry(in, W, H, FX, W / 2.0, W / 2.0, BASELINE);
   GstBuffer *out = gst_harness_push_and_pull(rig.h, in);
@@ -210,8 +211,10 @@ void check_synthetic(const char *format)
   fail_unless(st.total_ms >= st.detect_ms + st.match_ms + st.refine_ms);
   fail_unless_equals_uint64(times.timestamp, 120 * GST_MSECOND);
   fail_unless_equals_uint64(times.running_time, 120 * GST_MSECOND);
+  const guint keypoints = m->n_keypoints[0];
   gst_buffer_unref(out);
   rig_teardown(rig);
+  return keypoints;
 }
 
 /* A vegetation meta whose two views are @mask (GRAY8, view size) or, when empty, @box only. */
@@ -270,6 +273,19 @@ GST_END_TEST;
 GST_START_TEST(test_synthetic_bgrx)
 {
   check_synthetic("BGRx");
+}
+GST_END_TEST;
+
+/* upright (the default, treestereo's SIFT) and upright=false (OpenCV's) both match the pair to
+ * its true disparity; OpenCV's SIFT repeats a place once per dominant orientation, upright
+ * describes it once. */
+GST_START_TEST(test_upright_and_opencv_sift)
+{
+  const guint upright = check_synthetic("GRAY8");
+  const guint opencv = check_synthetic("GRAY8", "upright=false");
+  g_print("keypoints of the left view: upright %u, OpenCV's SIFT %u\n", upright, opencv);
+  fail_unless(upright < opencv, "upright %u keypoints, OpenCV %u", upright, opencv);
+  fail_unless(upright * 10 > opencv * 7, "upright %u keypoints, OpenCV %u", upright, opencv);
 }
 GST_END_TEST;
 
@@ -453,11 +469,11 @@ GST_START_TEST(test_property_ranges)
   GParamSpec *n = g_object_class_find_property(klass, "nfeatures");
   fail_unless_equals_int(G_PARAM_SPEC_INT(n)->minimum, 0);
   fail_unless_equals_int(G_PARAM_SPEC_INT(n)->default_value, 0);
-  gboolean mutual, use_mask, refine, post;
+  gboolean mutual, use_mask, refine, post, upright;
   gint method;
   g_object_get(e, "mutual", &mutual, "use-mask", &use_mask, "refine", &refine, "post-messages",
-               &post, "method", &method, nullptr);
-  fail_unless(mutual && use_mask && refine && post);
+               &post, "method", &method, "upright", &upright, nullptr);
+  fail_unless(mutual && use_mask && refine && post && upright);
   fail_unless_equals_int(method, GST_TREE_STEREO_MATCH_EUCLIDEAN);
   gst_util_set_object_arg(G_OBJECT(e), "method", "cosine-norm");
   g_object_get(e, "method", &method, nullptr);
@@ -583,6 +599,7 @@ static Suite *siftmatch_suite(void)
   tcase_add_test(tc, test_synthetic_gray8);
   tcase_add_test(tc, test_synthetic_rgb);
   tcase_add_test(tc, test_synthetic_bgrx);
+  tcase_add_test(tc, test_upright_and_opencv_sift);
   tcase_add_test(tc, test_vegetation_mask_restricts_detection);
   tcase_add_test(tc, test_properties_change_while_playing);
   tcase_add_test(tc, test_property_ranges);
