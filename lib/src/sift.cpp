@@ -32,35 +32,48 @@ struct Extremum {
   float xc, xr, xs, contrast;
 };
 
+// The gradient and Hessian of the difference of Gaussians at a sample, in (x, y, scale), on
+// [0,1] grey (the pyramid holds 0..255).
+struct Derivatives {
+  float value;      // the sample, [0,1] grey
+  cv::Vec3f grad;   // d/dx, d/dy, d/dscale
+  cv::Matx33f hess; // the same order
+};
+
+Derivatives derivatives(const std::vector<cv::Mat> &dog, int layer, int r, int c)
+{
+  const float img_scale = 1.f / 255.f;
+  const float d1 = img_scale * 0.5f, d2 = img_scale, dc = img_scale * 0.25f;
+  const cv::Mat &cur = dog[layer], &prv = dog[layer - 1], &nxt = dog[layer + 1];
+  auto I = [](const cv::Mat &m, int y, int x) { return m.at<float>(y, x); };
+  const float v2 = I(cur, r, c) * 2.f;
+  const float dxx = (I(cur, r, c + 1) + I(cur, r, c - 1) - v2) * d2;
+  const float dyy = (I(cur, r + 1, c) + I(cur, r - 1, c) - v2) * d2;
+  const float dss = (I(nxt, r, c) + I(prv, r, c) - v2) * d2;
+  const float dxy = (I(cur, r + 1, c + 1) - I(cur, r + 1, c - 1) - I(cur, r - 1, c + 1) +
+                     I(cur, r - 1, c - 1)) * dc;
+  const float dxs = (I(nxt, r, c + 1) - I(nxt, r, c - 1) - I(prv, r, c + 1) +
+                     I(prv, r, c - 1)) * dc;
+  const float dys = (I(nxt, r + 1, c) - I(nxt, r - 1, c) - I(prv, r + 1, c) +
+                     I(prv, r - 1, c)) * dc;
+  return {I(cur, r, c) * img_scale,
+          cv::Vec3f((I(cur, r, c + 1) - I(cur, r, c - 1)) * d1,
+                    (I(cur, r + 1, c) - I(cur, r - 1, c)) * d1, (I(nxt, r, c) - I(prv, r, c)) * d1),
+          cv::Matx33f(dxx, dxy, dxs, dxy, dyy, dys, dxs, dys, dss)};
+}
+
 // Lowe's sub-pixel location: a quadratic fit in (x, y, scale) around the sample, moved at most
 // kMaxSteps times; then the contrast and edge (curvature ratio) tests.
 bool locate(const std::vector<cv::Mat> &dog, int layers, double contrast_threshold,
             double edge_threshold, Extremum &e)
 {
-  const float img_scale = 1.f / 255.f;
-  const float d1 = img_scale * 0.5f, d2 = img_scale, dc = img_scale * 0.25f;
-  cv::Vec3f x, grad;
+  const int rows = dog[0].rows, cols = dog[0].cols;
+  cv::Vec3f x;
+  Derivatives d;
   int step = 0;
   for (; step < kMaxSteps; ++step) {
-    const cv::Mat &cur = dog[e.layer], &prv = dog[e.layer - 1], &nxt = dog[e.layer + 1];
-    const int r = e.r, c = e.c;
-    auto I = [&](const cv::Mat &m, int y, int xx) { return m.at<float>(y, xx); };
-    grad = cv::Vec3f((I(cur, r, c + 1) - I(cur, r, c - 1)) * d1,
-                     (I(cur, r + 1, c) - I(cur, r - 1, c)) * d1,
-                     (I(nxt, r, c) - I(prv, r, c)) * d1);
-    const float v2 = I(cur, r, c) * 2.f;
-    const float dxx = (I(cur, r, c + 1) + I(cur, r, c - 1) - v2) * d2;
-    const float dyy = (I(cur, r + 1, c) + I(cur, r - 1, c) - v2) * d2;
-    const float dss = (I(nxt, r, c) + I(prv, r, c) - v2) * d2;
-    const float dxy = (I(cur, r + 1, c + 1) - I(cur, r + 1, c - 1) - I(cur, r - 1, c + 1) +
-                       I(cur, r - 1, c - 1)) * dc;
-    const float dxs = (I(nxt, r, c + 1) - I(nxt, r, c - 1) - I(prv, r, c + 1) +
-                       I(prv, r, c - 1)) * dc;
-    const float dys = (I(nxt, r + 1, c) - I(nxt, r - 1, c) - I(prv, r + 1, c) +
-                       I(prv, r - 1, c)) * dc;
-    const cv::Matx33f H(dxx, dxy, dxs, dxy, dyy, dys, dxs, dys, dss);
-    const cv::Vec3f sol = H.solve(grad, cv::DECOMP_LU);
-    x = -sol;
+    d = derivatives(dog, e.layer, e.r, e.c);
+    x = -d.hess.solve(d.grad, cv::DECOMP_LU);
     if (std::abs(x[0]) < 0.5f && std::abs(x[1]) < 0.5f && std::abs(x[2]) < 0.5f)
       break;
     if (std::abs(x[0]) > float(INT_MAX / 3) || std::abs(x[1]) > float(INT_MAX / 3) ||
@@ -69,27 +82,17 @@ bool locate(const std::vector<cv::Mat> &dog, int layers, double contrast_thresho
     e.c += cvRound(x[0]);
     e.r += cvRound(x[1]);
     e.layer += cvRound(x[2]);
-    if (e.layer < 1 || e.layer > layers || e.c < kBorder || e.c >= cur.cols - kBorder ||
-        e.r < kBorder || e.r >= cur.rows - kBorder)
+    if (e.layer < 1 || e.layer > layers || e.c < kBorder || e.c >= cols - kBorder ||
+        e.r < kBorder || e.r >= rows - kBorder)
       return false;
   }
   if (step >= kMaxSteps)
     return false;
-
-  const cv::Mat &cur = dog[e.layer], &prv = dog[e.layer - 1], &nxt = dog[e.layer + 1];
-  const int r = e.r, c = e.c;
-  auto I = [&](const cv::Mat &m, int y, int xx) { return m.at<float>(y, xx); };
-  grad = cv::Vec3f((I(cur, r, c + 1) - I(cur, r, c - 1)) * d1,
-                   (I(cur, r + 1, c) - I(cur, r - 1, c)) * d1,
-                   (I(nxt, r, c) - I(prv, r, c)) * d1);
-  const float contrast = I(cur, r, c) * img_scale + grad.dot(x) * 0.5f;
+  // d is the last location's: the loop left at its break.
+  const float contrast = d.value + d.grad.dot(x) * 0.5f;
   if (std::abs(contrast) * float(layers) < float(contrast_threshold))
     return false;
-  const float v2 = I(cur, r, c) * 2.f;
-  const float dxx = (I(cur, r, c + 1) + I(cur, r, c - 1) - v2) * d2;
-  const float dyy = (I(cur, r + 1, c) + I(cur, r - 1, c) - v2) * d2;
-  const float dxy = (I(cur, r + 1, c + 1) - I(cur, r + 1, c - 1) - I(cur, r - 1, c + 1) +
-                     I(cur, r - 1, c - 1)) * dc;
+  const float dxx = d.hess(0, 0), dyy = d.hess(1, 1), dxy = d.hess(0, 1);
   const float tr = dxx + dyy, det = dxx * dyy - dxy * dxy;
   const float edge = float(edge_threshold);
   if (det <= 0 || tr * tr * edge >= (edge + 1) * (edge + 1) * det)
@@ -131,8 +134,13 @@ inline bool is_extremum(float v, const float *p0, const float *p1, const float *
 // is a product of a row and a column factor. So each row is histogrammed over (column bin,
 // orientation) first, then added into its two row bins: 4 updates per sample instead of the
 // 8 of the trilinear interpolation, the same sums.
-void describe_one(const cv::Mat &img, cv::Point2f pt, float sigma, float *dst,
-                  std::vector<float> &buf)
+// Per-row work arrays, reused from one keypoint to the next.
+struct Scratch {
+  std::vector<float> f;
+  std::vector<int> i;
+};
+
+void describe_one(const cv::Mat &img, cv::Point2f pt, float sigma, float *dst, Scratch &buf)
 {
   const cv::Point p(cvRound(pt.x), cvRound(pt.y));
   const float cell = kCellScale * sigma, inv_cell = 1.f / cell;
@@ -146,13 +154,11 @@ void describe_one(const cv::Mat &img, cv::Point2f pt, float sigma, float *dst,
     return;
   }
   const int w = j_hi - j_lo + 1;
-  buf.resize(size_t(w) * 12);
-  float *X = buf.data(), *Y = X + w, *O = Y + w, *M = O + w, *WC = M + w, *FC = WC + w;
+  buf.f.resize(size_t(w) * 10);
+  buf.i.resize(size_t(w) * 2);
+  float *X = buf.f.data(), *Y = X + w, *O = Y + w, *M = O + w, *WC = M + w, *FC = WC + w;
   float *A00 = FC + w, *A01 = A00 + w, *A10 = A01 + w, *A11 = A10 + w;
-  // Integers share the float buffer (same size): each column's first histogram entry, then each
-  // sample's.
-  static_assert(sizeof(int) == sizeof(float), "bin indices share the float buffer");
-  int *CI = reinterpret_cast<int *>(A11 + w), *IDX = CI + w;
+  int *CI = buf.i.data(), *IDX = CI + w; // each column's first histogram entry, each sample's
   constexpr int hc = kCells + 2, hb = kBins + 2, row_len = hc * hb;
   int n = 0; // columns whose bin is inside
   int first = 0;
@@ -405,7 +411,7 @@ cv::Mat UprightSift::describe(const SiftPyramid &pyr, const std::vector<cv::KeyP
   if (!needed.empty() && needed.size() != kps.size())
     throw std::runtime_error("SIFT: one 'needed' flag per keypoint expected");
   cv::Mat desc = cv::Mat::zeros(int(kps.size()), kCells * kCells * kBins, CV_32F);
-  std::vector<float> buf;
+  Scratch buf;
   for (size_t k = 0; k < kps.size(); ++k) {
     if (!needed.empty() && !needed[k])
       continue;

@@ -65,9 +65,12 @@ struct LocatedFeatures {
 
 // One SIFT detector, created once and reused for every frame.
 //
-// Speed notes (OpenCV 4.6): SIFT always starts one octave below the input (firstOctave = -1,
-// the image is upsampled 2x with linear interpolation); the API has no switch for it and
-// `enable_precise_upscale` only exists from OpenCV 4.8. Detecting at scale 0.5 therefore still
+// Speed notes: SIFT starts one octave below the input (firstOctave = -1, the image is upsampled
+// 2x with linear interpolation): OpenCV 4.6's API has no switch for it (`enable_precise_upscale`
+// only exists from OpenCV 4.8) and the upright engine does the same, to find the same keypoints.
+// The upright engine costs about 44 % fewer instructions (docs/results.md, "Round 5"): no
+// orientation histograms, one descriptor per place, none for keypoints a caller does not need
+// (locate / describe). Detecting at scale 0.5 therefore still
 // builds a base octave at about the view's full size, but from an interpolated half-size image:
 // it costs roughly a quarter of full-resolution detection and finds the coarser keypoints.
 // Cropping to the canopy's box first is the other big saving.
