@@ -5,7 +5,8 @@
 // on (with the two-layer test off = before: min-zncc 0.8 and no other filter, and on = siftmatch's
 // refinement filters), and the paper's
 // perturbations of the right view (light -30 % / +30 %, rotation 90 degrees and scale 50 %, the
-// last two without the epipolar constraint). Also: a breakdown of the wrong matches by kind,
+// last two without the epipolar constraint, with siftmatch's upright SIFT and with OpenCV's,
+// which is rotation invariant). Also: a breakdown of the wrong matches by kind,
 // Middlebury Jadeplant before/after, and timing rows.
 //
 //   bench-match-scene [--seeds 1,2,3] [--distances 1.8,2.2] [--size 1296x972] [--runs 3]
@@ -279,17 +280,23 @@ void table(const std::vector<Pair> &pairs, const Options &o)
   const double n = double(pairs.size());
   for (const Perturbation &pert : perturbations())
     for (MatchMethod method : {MatchMethod::Euclidean, MatchMethod::CosineNorm})
-      for (int variant = 0; variant < 3; ++variant) {
-        // 0: constraints off; 1: on, two-layer test off (the default); 2: on, test on
-        if (variant > 0 && !pert.rectified)
+      for (int variant = 0; variant < 4; ++variant) {
+        // 0: constraints off; 1: on, two-layer test off (the default); 2: on, test on. The
+        // views that are not rectified (rotated, scaled): 0, then 3: constraints off with
+        // OpenCV's SIFT, whose descriptors follow each keypoint's orientation (the upright
+        // ones cannot match a rotated view).
+        if (pert.rectified ? variant == 3 : variant == 1 || variant == 2)
           continue;
         MatchParams p = element_params(pairs[0].scene.geometry, o.size.width, method,
                                        variant == 2, o.set);
-        if (variant == 0)
+        if (variant == 0 || variant == 3)
           unconstrained(p);
+        if (variant == 3)
+          p.detect.engine = SiftEngine::OpenCV;
         Row r = run_row(pairs, pert, p, o.runs);
+        const std::string name = std::string(pert.name) + (variant == 3 ? ", OpenCV's SIFT" : "");
         std::printf("| %s | %s | %s | %s | %.0f | %.0f | %.0f | %zu | %zu | %zu | %.2f | %.1f |\n",
-                    pert.name, match_method_name(method), variant == 0 ? "off" : "on",
+                    name.c_str(), match_method_name(method), variant == 0 || variant == 3 ? "off" : "on",
                     variant == 2 ? "on" : "off", double(r.kp_l) / n, double(r.kp_r) / n,
                     double(r.matches) / n, r.min_matches, r.evaluated, r.wrong,
                     r.evaluated ? 100.0 * double(r.evaluated - r.wrong) / double(r.evaluated) : 0.0,
