@@ -31,6 +31,7 @@ namespace {
 constexpr double kRotationTolerance = 1e-3;
 // Below this the rig has no baseline worth the name (mm).
 constexpr double kMinBaselineMm = 1e-3;
+constexpr int kMaxImageSide = 32768; // larger than any camera sensor: a typo or a corrupt file
 
 std::string lower(std::string s)
 {
@@ -361,7 +362,8 @@ StereoCalibration load_opencv_split(const std::string &intr_file, const std::str
   read_extrinsics(fe, extr_file, c);
   read_pixel_size(fi, intr_file, c);
   c.image_size = read_image_size(fi, intr_file);
-  if (c.image_size.area() == 0 && (has_key(fe, "image_width") || has_key(fe, "image_height")))
+  if ((c.image_size.width == 0 || c.image_size.height == 0) &&
+      (has_key(fe, "image_width") || has_key(fe, "image_height")))
     c.image_size = read_image_size(fe, extr_file);
   validate_calibration(c, intr_file + ";" + extr_file);
   return c;
@@ -566,6 +568,11 @@ void validate_calibration(const StereoCalibration &c, const std::string &source)
   if (c.image_size.width <= 0 || c.image_size.height <= 0)
     throw CalibrationError(source, "image_width",
                            "image size " + size_str(c.image_size) + " is not positive");
+  if (c.image_size.width > kMaxImageSide || c.image_size.height > kMaxImageSide)
+    throw CalibrationError(source, "image_width",
+                           "image size " + size_str(c.image_size) + " is larger than " +
+                               std::to_string(kMaxImageSide) +
+                               " px on a side: no camera's (check image_width and image_height)");
   check_camera_matrix(c.M1, source, "M1");
   check_distortion(c.D1, source, "D1");
   check_camera_matrix(c.M2, source, "M2");
@@ -651,7 +658,7 @@ StereoCalibration scale_calibration(const StereoCalibration &calib, cv::Size new
   const cv::Size old = calib.image_size;
   if (new_size == old)
     return calib;
-  if (old.area() <= 0 || new_size.width <= 0 || new_size.height <= 0)
+  if (old.width <= 0 || old.height <= 0 || new_size.width <= 0 || new_size.height <= 0)
     throw CalibrationError(source, "image_width",
                            "cannot scale a calibration for " + size_str(old) + " to " +
                                size_str(new_size));

@@ -337,6 +337,22 @@ TEST(CalibrationErrors, ImageSizeMissingOrNotPositive)
   rig.image_size = {640, -480};
   write_opencv(dir.file("neg.yml"), rig);
   expect_error([&] { load_calibration(dir.file("neg.yml")); }, "neg.yml", "image_width", "640x-480 is not positive");
+  // Found by fuzzing: 2592 x 2591944 overflowed int in a size's area (undefined behaviour) and
+  // would have asked stereorectify for maps of 27 GB.
+  rig.image_size = {2592, 2591944};
+  write_opencv(dir.file("huge.yml"), rig);
+  expect_error([&] { load_calibration(dir.file("huge.yml")); }, "huge.yml", "image_width",
+               "2592x2591944 is larger than 32768 px on a side");
+  {
+    // The split files' path to the same check (the size is read where it is found).
+    cv::FileStorage fi(dir.file("intr.yml"), cv::FileStorage::WRITE);
+    fi << "M1" << rig.M1 << "D1" << rig.D1 << "M2" << rig.M2 << "D2" << rig.D2;
+    fi << "image_width" << rig.image_size.width << "image_height" << rig.image_size.height;
+    cv::FileStorage fe(dir.file("extr.yml"), cv::FileStorage::WRITE);
+    fe << "R" << rig.R << "T" << rig.T;
+  }
+  expect_error([&] { load_calibration(dir.file("intr.yml") + ";" + dir.file("extr.yml")); },
+               "intr.yml", "image_width", "larger than 32768 px");
 }
 
 TEST(CalibrationErrors, FileMissing)
