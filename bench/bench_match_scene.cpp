@@ -16,11 +16,11 @@
 // --set changes the settings of the "two-layer test on" rows (keys: min-zncc, min-zncc-drop,
 // layer-tolerance, layer-half-window, layer-search, layer-centre-tolerance, layer-min-zncc,
 // layer-centre-min-zncc, relocate, half-window, search, scale, nfeatures, contrast-threshold,
-// mask-inset, upright (1: the project's upright SIFT), ratio, epipolar-tolerance, mutual), to explore other values. --mask: the row and
-// errors modes detect inside each view's rendered canopy mask, as siftmatch does behind
-// exgsegment (default: whole views, as Table 1). --only step runs just the siftmatch step on the timing pair (1296x972,
-// canopy mask) --runs times on one OpenCV thread, for instruction counts under callgrind
-// (bench/callgrind-step.sh).
+// mask-inset, upright (1: the project's upright SIFT, 0: OpenCV's), ratio, epipolar-tolerance,
+// mutual), to explore other values. --mask: the row and errors modes detect inside each view's
+// rendered canopy mask, as siftmatch does behind exgsegment (default: whole views, as Table 1).
+// --only step runs just the siftmatch step on the timing pair (1296x972, canopy mask) --runs
+// times on one OpenCV thread, for instruction counts under callgrind (bench/callgrind-step.sh).
 #include "scene_pairs.hpp"
 #include "sweep.hpp"
 #include "treestereo/data_dir.hpp"

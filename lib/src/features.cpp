@@ -86,14 +86,21 @@ const DetectParams &checked(const DetectParams &params)
     throw std::runtime_error("feature detection: mask_inset must be >= 0");
   return params;
 }
-} // namespace
 
 // Both engines: 3 layers per octave, sigma 1.6, edge threshold 10 (OpenCV's defaults).
-FeatureDetector::FeatureDetector(const DetectParams &params)
-    : params_(checked(params)), upright_(SiftParams{3, 1.6, params.contrast_threshold, 10.0})
+SiftParams sift_params(const DetectParams &params)
 {
+  return SiftParams{3, 1.6, params.contrast_threshold, 10.0};
+}
+} // namespace
+
+FeatureDetector::FeatureDetector(const DetectParams &params)
+    : params_(checked(params)), upright_(sift_params(params))
+{
+  const SiftParams &sp = upright_.params();
   // Float descriptors for the matchers.
-  sift_ = cv::SIFT::create(params.nfeatures, 3, params.contrast_threshold, 10.0, 1.6, CV_32F);
+  sift_ = cv::SIFT::create(params.nfeatures, sp.layers, sp.contrast_threshold, sp.edge_threshold,
+                           sp.sigma, CV_32F);
   if (params.mask_inset > 0) {
     const int d = 2 * params.mask_inset + 1;
     inset_kernel_ = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(d, d));

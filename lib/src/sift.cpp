@@ -375,9 +375,9 @@ std::vector<cv::KeyPoint> UprightSift::detect(const cv::Mat &gray, const cv::Mat
           Extremum e{o, i, r, c, 0, 0, 0, 0};
           if (!locate(d, L, params_.contrast_threshold, params_.edge_threshold, e))
             continue;
-          // Octave pixel x is input pixel x * step + (step - 1) / 2 ... for octave 0 (step
-          // 1/2, linear upsampling with aligned pixel centres) x / 2 - 0.25; every later octave
-          // keeps every other sample of the one before, so the offset stays -0.25.
+          // Octave 0's pixel x is the input's x / 2 - 0.25 (linear upsampling with aligned pixel
+          // centres); every later octave keeps every other sample of the one before, so octave
+          // pixel x is input pixel x * step - 0.25 in all of them.
           const cv::Point2f pt((float(e.c) + e.xc) * step - 0.25f,
                                (float(e.r) + e.xr) * step - 0.25f);
           if (!mask.empty()) {

@@ -70,8 +70,8 @@ struct LocatedFeatures {
 // only exists from OpenCV 4.8) and the upright engine does the same, to find the same keypoints.
 // The upright engine costs about 44 % fewer instructions (docs/results.md, "Round 5"): no
 // orientation histograms, one descriptor per place, none for keypoints a caller does not need
-// (locate / describe). Detecting at scale 0.5 therefore still
-// builds a base octave at about the view's full size, but from an interpolated half-size image:
+// (locate / describe). Because of the upsampling, detecting at scale 0.5 still builds a base
+// octave at about the view's full size, but from an interpolated half-size image:
 // it costs roughly a quarter of full-resolution detection and finds the coarser keypoints.
 // Cropping to the canopy's box first is the other big saving.
 class FeatureDetector {
