@@ -135,14 +135,20 @@ RowExtents row_extents(const cv::Mat &mask)
   e.bbox = cv::boundingRect(mask);
   e.left.assign(std::size_t(e.bbox.height), -1);
   e.right.assign(std::size_t(e.bbox.height), -1);
+  const int x0 = e.bbox.x, x1 = e.bbox.x + e.bbox.width; // columns [x0, x1)
   for (int r = 0; r < e.bbox.height; ++r) {
     const uchar *row = mask.ptr<uchar>(e.bbox.y + r);
-    for (int x = e.bbox.x; x < e.bbox.x + e.bbox.width; ++x)
-      if (row[x]) {
-        if (e.left[std::size_t(r)] < 0)
-          e.left[std::size_t(r)] = x;
-        e.right[std::size_t(r)] = x;
-      }
+    // From each end inwards: only the rows' outer gaps are read, not their whole width.
+    int xl = x0;
+    while (xl < x1 && !row[xl])
+      ++xl;
+    if (xl == x1)
+      continue; // an empty row inside the box (a gap between parts of the silhouette)
+    int xr = x1 - 1;
+    while (!row[xr])
+      --xr;
+    e.left[std::size_t(r)] = xl;
+    e.right[std::size_t(r)] = xr;
   }
   return e;
 }
@@ -515,8 +521,9 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
   m.matches = points.size();
   if (p.area_weighted) {
     const std::vector<double> w = area_weights(pts, left.mask);
-    m.distance_m = weighted_percentile(z, w, 50.0) * kMmToM;
-    m.thickness_m = (weighted_percentile(z, w, 95.0) - weighted_percentile(z, w, 5.0)) * kMmToM;
+    const std::vector<double> q = weighted_percentiles(z, w, {50.0, 5.0, 95.0});
+    m.distance_m = q[0] * kMmToM;
+    m.thickness_m = (q[2] - q[1]) * kMmToM;
   } else {
     m.distance_m = depth.median * kMmToM;
     m.thickness_m = (depth.p95 - depth.p05) * kMmToM;

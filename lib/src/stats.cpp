@@ -33,28 +33,41 @@ double mad(std::vector<double> &v, double med)
   return median(dev);
 }
 
-double weighted_percentile(const std::vector<double> &values, const std::vector<double> &weights,
-                           double p)
+std::vector<double> weighted_percentiles(const std::vector<double> &values,
+                                         const std::vector<double> &weights,
+                                         const std::vector<double> &ps)
 {
   if (values.size() != weights.size())
     throw std::invalid_argument("weighted_percentile: values and weights differ in size");
-  std::vector<std::size_t> order(values.size());
-  std::iota(order.begin(), order.end(), std::size_t(0));
-  std::sort(order.begin(), order.end(),
-            [&](std::size_t a, std::size_t b) { return values[a] < values[b]; });
+  std::vector<double> out(ps.size(), 0.0);
   double total = 0.0;
   for (double w : weights)
     total += w > 0 ? w : 0.0;
   if (total <= 0)
-    return 0.0;
-  const double target = std::clamp(p, 0.0, 100.0) / 100.0 * total;
-  double cum = 0.0;
-  for (std::size_t i : order) {
-    cum += weights[i] > 0 ? weights[i] : 0.0;
-    if (cum >= target && weights[i] > 0)
-      return values[i];
+    return out;
+  std::vector<std::size_t> order(values.size());
+  std::iota(order.begin(), order.end(), std::size_t(0));
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return values[a] < values[b]; });
+  for (std::size_t k = 0; k < ps.size(); ++k) {
+    const double target = std::clamp(ps[k], 0.0, 100.0) / 100.0 * total;
+    double cum = 0.0;
+    out[k] = values[order.back()];
+    for (std::size_t i : order) {
+      cum += weights[i] > 0 ? weights[i] : 0.0;
+      if (cum >= target && weights[i] > 0) {
+        out[k] = values[i];
+        break;
+      }
+    }
   }
-  return values[order.back()];
+  return out;
+}
+
+double weighted_percentile(const std::vector<double> &values, const std::vector<double> &weights,
+                           double p)
+{
+  return weighted_percentiles(values, weights, {p})[0];
 }
 
 Summary summarize(const std::vector<double> &values)

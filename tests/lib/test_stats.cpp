@@ -51,3 +51,22 @@ TEST(Stats, WeightedPercentileFollowsTheWeights)
   EXPECT_EQ(weighted_percentile(v, std::vector<double>(10, 0.0), 50), 0.0);
   EXPECT_THROW(weighted_percentile(v, {1.0}, 50), std::invalid_argument);
 }
+
+TEST(Stats, WeightedPercentilesAreEachOneAlone)
+{
+  // Unsorted values with ties and a non-positive weight: each of several percentiles at once
+  // equals the one asked alone.
+  const std::vector<double> v{5, 3, 9, 3, 1, 7, 7, 2, 8, 4};
+  const std::vector<double> w{1, 2, 0.5, 3, -1, 2, 1, 4, 0, 1.5};
+  const std::vector<double> ps{0, 5, 30, 50, 95, 100, 120};
+  const std::vector<double> all = weighted_percentiles(v, w, ps);
+  ASSERT_EQ(all.size(), ps.size());
+  for (std::size_t i = 0; i < ps.size(); ++i)
+    EXPECT_EQ(all[i], weighted_percentile(v, w, ps[i])) << "p = " << ps[i];
+  // By value the positive weights run 4 (at 2), 2 and 3 (at 3), ...: 15 in all, so the
+  // cumulative weight passes 50 % (7.5) at the second 3 (9).
+  EXPECT_EQ(all[3], 3.0);
+  EXPECT_EQ(weighted_percentiles(v, std::vector<double>(10, 0.0), {50, 95}),
+            (std::vector<double>{0.0, 0.0}));
+  EXPECT_THROW(weighted_percentiles(v, {1.0}, {50}), std::invalid_argument);
+}

@@ -20,6 +20,10 @@ double mad(std::vector<double> &values, double med);
 // Non-positive weights count as nothing; no weight at all gives 0. Sizes must match.
 double weighted_percentile(const std::vector<double> &values, const std::vector<double> &weights,
                            double p);
+// The same for several percentiles at once (one sort of the values): result[i] is ps[i]'s.
+std::vector<double> weighted_percentiles(const std::vector<double> &values,
+                                         const std::vector<double> &weights,
+                                         const std::vector<double> &ps);
 
 struct Summary {
   std::size_t n = 0;
