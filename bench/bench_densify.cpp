@@ -18,7 +18,10 @@
 //                 [--step 0] [--target 4000] [--half-window 3] [--min-zncc 0.8]
 //                 [--margin 0.05] [--lr 1] [--tangent-fraction 0.1] [--tangent-min 15] [--round-limbs 1]
 //                 [--morph 5] [--reconstruct 1] [--area-weighted 1] [--outlier-k 3.5]
-//                 [--edge-band 0.05] [--edge-step 0] [--extreme-points 6]
+//                 [--edge-band 0.05] [--edge-step 0] [--extreme-points 6] [--threads N]
+//
+// --threads 1 runs OpenCV's parallel loops in the calling thread, so that callgrind's
+// --toggle-collect (e.g. 'treestereo::densify_matches*') counts all of a function's work.
 #include "scene_pairs.hpp"
 #include "sweep.hpp"
 #include "treestereo/densify.hpp"
@@ -106,6 +109,8 @@ int main(int argc, char **argv)
       dp.edge_step = std::stoi(v);
     else if (a == "--lr")
       dp.left_right_check = std::stoi(v) != 0;
+    else if (a == "--threads")
+      cv::setNumThreads(std::stoi(v));
     else {
       std::fprintf(stderr, "bench-densify: unknown option %s\n", a.c_str());
       return 2;
