@@ -38,17 +38,18 @@ void check_input(const cv::Mat &left, const cv::Mat &right, const cv::Mat &mask,
 
 enum class Outcome { kKept, kFlat, kWeak, kAmbiguous, kInconsistent };
 
-// The integer disparity of the best ZNCC of `lc` (a patch of `from` at (x, y)) against patches
-// of `to` at x - sign * d, d in [lo, hi]; scores[d - lo + 1] holds d's score (and the ends
-// lo - 1, hi + 1 as parabola neighbours). Returns lo - 1 when the peak is not inside [lo, hi].
-int best_disparity(const std::vector<float> &lc, double lnorm, const cv::Mat &to, int x, int y,
-                   int h, int lo, int hi, int sign, std::vector<double> &scores)
+// The integer disparity of the best ZNCC of `patch` (of `from` at (x, y)) against patches of
+// `to` at x - sign * d, d in [lo, hi]; scores[d - lo + 1] holds d's score (and the ends lo - 1,
+// hi + 1 as parabola neighbours). Returns lo - 1 when the peak is not inside [lo, hi].
+int best_disparity(const detail::Patch &patch, const cv::Mat &to, int x, int y, int lo, int hi,
+                   int sign, std::vector<double> &scores)
 {
+  const int h = patch.h;
   scores.assign(std::size_t(hi - lo + 3), -1.0);
   for (int d = lo - 1; d <= hi + 1; ++d) {
     const int xt = x - sign * d;
     if (xt - h - 1 >= 0 && xt + h + 1 < to.cols)
-      scores[std::size_t(d - lo + 1)] = detail::zncc(lc, lnorm, to, xt, y, h);
+      scores[std::size_t(d - lo + 1)] = detail::zncc(patch, to, xt, y);
   }
   const auto it = std::max_element(scores.begin(), scores.end());
   const int best = int(it - scores.begin()) + lo - 1;
@@ -62,20 +63,18 @@ struct GridPoint {
 
 // Per-thread scratch buffers, reused from one grid point to the next.
 struct Scratch {
-  std::vector<float> lc, rc;        // centred left and right patches
+  detail::Patch lp, rp;             // the left and right patches
   std::vector<double> scores, back; // ZNCC along the row, and back from the right view
 };
 
 GridPoint match_grid_point(const cv::Mat &L, const cv::Mat &R, int x, int y, int lo, int hi,
                            const DensifyParams &p, Scratch &sc)
 {
-  std::vector<float> &lc = sc.lc, &rc = sc.rc;
   std::vector<double> &scores = sc.scores;
   const int h = p.half_window;
-  double lnorm = 0;
-  if (!detail::centred_patch(L, x, y, h, lc, lnorm))
+  if (!detail::centred_patch(L, x, y, h, sc.lp))
     return {Outcome::kFlat, {}};
-  const int best = best_disparity(lc, lnorm, R, x, y, h, lo, hi, +1, scores);
+  const int best = best_disparity(sc.lp, R, x, y, lo, hi, +1, scores);
   if (best < lo)
     return {Outcome::kWeak, {}};
   const double c0 = scores[std::size_t(best - lo + 1)];
@@ -89,16 +88,15 @@ GridPoint match_grid_point(const cv::Mat &L, const cv::Mat &R, int x, int y, int
     return {Outcome::kAmbiguous, {}};
   const double cm = scores[std::size_t(best - lo)], cp = scores[std::size_t(best - lo + 2)];
   if (p.left_right_check) {
-    double rnorm = 0;
     const int xr = x - best;
-    if (!detail::centred_patch(R, xr, y, h, rc, rnorm))
+    if (!detail::centred_patch(R, xr, y, h, sc.rp))
       return {Outcome::kInconsistent, {}};
-    const int b = best_disparity(rc, rnorm, L, xr, y, h, lo, hi, -1, sc.back);
+    const int b = best_disparity(sc.rp, L, xr, y, lo, hi, -1, sc.back);
     if (b < lo || std::abs(b - best) > 1)
       return {Outcome::kInconsistent, {}};
   }
   const double start = double(x - best) - detail::parabola_offset(cm, c0, cp);
-  const double xr = detail::gauss_newton_x(lc, lnorm, R, start, y, h);
+  const double xr = detail::gauss_newton_x(sc.lp, R, start, y);
   StereoMatch m;
   m.xl = float(x);
   m.yl = float(y);

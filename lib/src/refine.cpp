@@ -20,19 +20,18 @@ using detail::zncc;
 
 namespace {
 
-// Sub-pixel position of the best match of the zero-mean template `lc` (centred on a pixel of the
-// other view) along row `yi` of `img`, searched at integer centres xc-S..xc+S: the integer peak,
+// Sub-pixel position of the best match of `patch` (centred on a pixel of the other view) along
+// row `yi` of `img`, searched at integer centres xc-S..xc+S: the integer peak,
 // a parabola through it and its neighbours, then Gauss-Newton. False when there is no peak of at
 // least min_zncc inside the range, or when the scores over the range stay within min_drop of it
 // (the patch correlates about as well everywhere along the row: no position to measure).
-bool best_position(const std::vector<float> &lc, double lnorm, const cv::Mat &img, int xc, int yi,
-                   int h, int S, double min_zncc, double min_drop, std::vector<double> &scores,
-                   double &x_out)
+bool best_position(const detail::Patch &patch, const cv::Mat &img, int xc, int yi, int S,
+                   double min_zncc, double min_drop, std::vector<double> &scores, double &x_out)
 {
   scores.resize(std::size_t(2 * S + 3));
   // Offsets -S-1..S+1: the outer two only serve as parabola neighbours.
   for (int k = -S - 1; k <= S + 1; ++k)
-    scores[std::size_t(k + S + 1)] = zncc(lc, lnorm, img, xc + k, yi, h);
+    scores[std::size_t(k + S + 1)] = zncc(patch, img, xc + k, yi);
   const int best = int(std::max_element(scores.begin(), scores.end()) - scores.begin()) - S - 1;
   const double c0 = scores[std::size_t(best + S + 1)];
   if (std::abs(best) > S || c0 < min_zncc ||
@@ -40,7 +39,7 @@ bool best_position(const std::vector<float> &lc, double lnorm, const cv::Mat &im
     return false; // the peak lies outside the search range, or there is no clear peak
   const double cm = scores[std::size_t(best + S)], cp = scores[std::size_t(best + S + 2)];
   const double delta = parabola_offset(cm, c0, cp);
-  x_out = gauss_newton_x(lc, lnorm, img, double(xc + best) + delta, yi, h);
+  x_out = gauss_newton_x(patch, img, double(xc + best) + delta, yi);
   return true;
 }
 
@@ -52,11 +51,14 @@ double zncc_sub(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double xr, i
 {
   double sl = 0, sr = 0, sll = 0, srr = 0, slr = 0;
   int n = 0;
+  // The right samples are whole pixels apart: one interpolation weight for all of them.
+  const int i0 = int(std::floor(xr));
+  const double f = xr - i0, f1 = 1.0 - f;
   for (int dy = y0; dy <= y1; ++dy) {
     const std::uint8_t *lrow = L.ptr<std::uint8_t>(yi + dy);
-    const std::uint8_t *rrow = R.ptr<std::uint8_t>(yi + dy);
+    const std::uint8_t *rrow = R.ptr<std::uint8_t>(yi + dy) + i0;
     for (int dx = x0; dx <= x1; ++dx) {
-      const double a = lrow[xi + dx], b = sample(rrow, xr + dx);
+      const double a = lrow[xi + dx], b = f1 * rrow[dx] + f * rrow[dx + 1];
       sl += a;
       sr += b;
       sll += a * a;
@@ -202,7 +204,7 @@ std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
   // their order.
   std::vector<unsigned char> keep(matches.size(), 0);
   cv::parallel_for_(cv::Range(0, int(matches.size())), [&](const cv::Range &range) {
-    std::vector<float> lc;
+    detail::Patch lp;
     std::vector<double> scores;
     for (int i = range.start; i < range.end; ++i) {
       StereoMatch &m = matches[std::size_t(i)];
@@ -210,9 +212,9 @@ std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
       const int xc = int(std::lround(double(xi) - m.disparity())); // right estimate on the grid
       const bool inside = yi - h >= 0 && yi + h < L.rows && xi - h >= 0 && xi + h < L.cols &&
                           xc - S - 1 - h >= 0 && xc + S + 1 + h < R.cols;
-      double lnorm = 0, xr = 0;
-      if (!inside || !centred_patch(L, xi, yi, h, lc, lnorm) ||
-          !best_position(lc, lnorm, R, xc, yi, h, S, p.min_zncc, p.min_zncc_drop, scores, xr))
+      double xr = 0;
+      if (!inside || !centred_patch(L, xi, yi, h, lp) ||
+          !best_position(lp, R, xc, yi, S, p.min_zncc, p.min_zncc_drop, scores, xr))
         continue;
       if (p.layer_tolerance >= 0) {
         const int hl = p.layer_half_window, rs = p.layer_search;

@@ -1,61 +1,94 @@
 #include "zncc.hpp"
 
+#include <opencv2/core/hal/intrin.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 
 namespace treestereo::detail {
 
-// Zero-mean copy of a square patch and its norm; false when it has no texture.
-bool centred_patch(const cv::Mat &img, int cx, int cy, int h, std::vector<float> &out, double &norm)
+bool centred_patch(const cv::Mat &img, int cx, int cy, int h, Patch &out)
 {
   const int n = 2 * h + 1;
-  out.resize(std::size_t(n * n));
-  double sum = 0;
-  for (int y = 0; y < n; ++y) {
-    const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y) + (cx - h);
-    for (int x = 0; x < n; ++x) {
-      out[std::size_t(y * n + x)] = row[x];
-      sum += row[x];
-    }
-  }
-  const float mean = float(sum / double(n * n));
-  double ss = 0;
-  for (float &v : out) {
-    v -= mean;
-    ss += double(v) * v;
-  }
-  norm = std::sqrt(ss);
-  return norm > 1e-3 * n; // flat patch: no peak to find
-}
-
-// ZNCC of the centred left patch against the right patch centred at (cx, cy). The right
-// patch's sum and sum of squares are whole numbers, summed exactly in integers; the cross term is
-// summed per row, and the rows into two sums, so that fewer additions wait for each other.
-double zncc(const std::vector<float> &lc, double lnorm, const cv::Mat &img, int cx, int cy, int h)
-{
-  const int n = 2 * h + 1;
-  double cross[2] = {0, 0};
+  out.h = h;
+  out.n = n;
+  out.stride = (n + 7) / 8 * 8;
+  out.pixels.assign(std::size_t(n * out.stride), 0);
+  out.centred.resize(std::size_t(n * n));
   std::int64_t sum = 0, ss = 0;
   for (int y = 0; y < n; ++y) {
     const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y) + (cx - h);
-    const float *l = &lc[std::size_t(y * n)];
-    double c = 0;
-    int rs = 0, rss = 0; // one row: at most 255 * 255 * n
+    std::int16_t *px = &out.pixels[std::size_t(y * out.stride)];
     for (int x = 0; x < n; ++x) {
-      const int v = row[x];
-      c += double(l[x]) * v; // sum(lc) = 0, so the right mean drops out of the cross term
-      rs += v;
-      rss += v * v;
+      px[x] = row[x];
+      out.centred[std::size_t(y * n + x)] = row[x];
+      sum += row[x];
+      ss += row[x] * row[x];
     }
-    cross[y & 1] += c;
-    sum += rs;
-    ss += rss;
   }
-  const double var = double(ss) - double(sum) * double(sum) / double(n * n);
-  if (var <= 1e-9)
+  out.sum = sum;
+  out.var = std::int64_t(n) * n * ss - sum * sum;
+  const float mean = float(double(sum) / double(n * n));
+  double cs = 0;
+  for (float &v : out.centred) {
+    v -= mean;
+    cs += double(v) * v;
+  }
+  out.norm = std::sqrt(cs);
+  return out.norm > 1e-3 * n; // flat patch: no peak to find
+}
+
+double zncc(const Patch &l, const cv::Mat &img, int cx, int cy)
+{
+  const int h = l.h, n = l.n, x0 = cx - h;
+  std::int64_t sr = 0, srr = 0, slr = 0;
+#if CV_SIMD128
+  // Eight pixels at a time (the 16-bit products summed in pairs into 32 bits: at most
+  // 2 * 255 * 255 a lane a step, 441 * 255 * 255 in all for a 21x21 patch). The padded rows read
+  // up to stride - n pixels past the patch, so only where the image has them.
+  if (x0 + l.stride <= img.cols) {
+    const int chunks = l.stride / 8, last = n - 8 * (chunks - 1); // lanes of the last chunk
+    alignas(16) std::int16_t m[8];
+    for (int k = 0; k < 8; ++k)
+      m[k] = k < last ? std::int16_t(-1) : std::int16_t(0);
+    const cv::v_int16x8 tail = cv::v_load(m), ones = cv::v_setall_s16(1);
+    cv::v_int32x4 a_r = cv::v_setzero_s32(), a_rr = cv::v_setzero_s32(),
+                  a_lr = cv::v_setzero_s32();
+    for (int y = 0; y < n; ++y) {
+      const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y) + x0;
+      const std::int16_t *lp = &l.pixels[std::size_t(y * l.stride)];
+      for (int c = 0; c < chunks; ++c) {
+        cv::v_int16x8 r = cv::v_reinterpret_as_s16(cv::v_load_expand(row + 8 * c));
+        if (c == chunks - 1)
+          r = r & tail;
+        a_lr += cv::v_dotprod(cv::v_load(lp + 8 * c), r);
+        a_rr += cv::v_dotprod(r, r);
+        a_r += cv::v_dotprod(r, ones);
+      }
+    }
+    sr = cv::v_reduce_sum(a_r);
+    srr = cv::v_reduce_sum(a_rr);
+    slr = cv::v_reduce_sum(a_lr);
+  } else
+#endif
+  {
+    for (int y = 0; y < n; ++y) {
+      const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y) + x0;
+      const std::int16_t *lp = &l.pixels[std::size_t(y * l.stride)];
+      for (int x = 0; x < n; ++x) {
+        const int v = row[x];
+        sr += v;
+        srr += v * v;
+        slr += lp[x] * v;
+      }
+    }
+  }
+  const std::int64_t nn = std::int64_t(n) * n;
+  const std::int64_t vr = nn * srr - sr * sr; // n^2 * sum of squared deviations: 0 when flat
+  if (vr <= 0 || l.var <= 0)
     return -1.0;
-  return (cross[0] + cross[1]) / (lnorm * std::sqrt(var));
+  return double(nn * slr - l.sum * sr) / std::sqrt(double(l.var) * double(vr));
 }
 
 // Gauss-Newton steps on the right patch's x position xr (sub-pixel, same row): minimises the
@@ -63,15 +96,19 @@ double zncc(const std::vector<float> &lc, double lnorm, const cv::Mat &img, int 
 // linearly. A parabola through integer-offset scores is pulled towards whole pixels (by up to
 // 0.3 px on smooth texture); this removes most of that bias. Returns xr unchanged when a step
 // would leave the image or +-1 px around the start.
-double gauss_newton_x(const std::vector<float> &lc, double lnorm, const cv::Mat &img, double xr,
-                      int cy, int h)
+double gauss_newton_x(const Patch &patch, const cv::Mat &img, double xr, int cy)
 {
-  const int n = 2 * h + 1;
+  const int h = patch.h, n = patch.n;
+  const std::vector<float> &lc = patch.centred;
+  const double lnorm = patch.norm;
   // Scratch of this thread, reused from call to call (densification calls this for every kept
   // grid point).
-  thread_local std::vector<double> v, g;
+  thread_local std::vector<double> v, g, ln;
   v.resize(std::size_t(n * n));
   g.resize(std::size_t(n * n));
+  ln.resize(std::size_t(n * n));
+  for (std::size_t k = 0; k < ln.size(); ++k) // the unit-norm patch, the same at every step
+    ln[k] = double(lc[k]) / lnorm;
   const double x0 = xr;
   // Six steps at most: with three, one patch of siftmatch's synthetic-shift test (23.37 px) stayed
   // 0.11 px off at contrast-threshold 0.035 (steps are clamped to 0.5 px); a step below 1e-3 px
@@ -105,7 +142,7 @@ double gauss_newton_x(const std::vector<float> &lc, double lnorm, const cv::Mat 
     double num = 0, den = 0;
     for (std::size_t k = 0; k < v.size(); ++k) {
       const double gn = g[k] / rnorm;
-      num += (double(lc[k]) / lnorm - v[k] / rnorm) * gn;
+      num += (ln[k] - v[k] / rnorm) * gn;
       den += gn * gn;
     }
     if (den <= 1e-12)

@@ -11,15 +11,24 @@
 
 namespace treestereo::detail {
 
-// Zero-mean copy of the (2h+1)^2 patch centred at (cx, cy) and its norm; false when it has no
-// texture (a flat patch has no correlation peak to find).
-bool centred_patch(const cv::Mat &img, int cx, int cy, int h, std::vector<float> &out,
-                   double &norm);
+// A patch of one view to correlate with the other: its pixels (each row padded with zeros to a
+// multiple of 8, for the vector loop), their sums, and the zero-mean copy Gauss-Newton fits.
+struct Patch {
+  int h = 0, n = 0, stride = 0;     // half window, side 2h + 1, int16 per padded row
+  std::vector<std::int16_t> pixels; // n rows of `stride`, zero beyond column n
+  std::vector<float> centred;       // n x n, the pixels less their mean
+  double norm = 0;                  // of `centred`
+  std::int64_t sum = 0, var = 0;    // sum of the pixels; n^2 * sum of squares - sum^2
+};
 
-// ZNCC of the centred left patch against the right patch centred at (cx, cy); -1 when the right
-// patch is flat.
-double zncc(const std::vector<float> &lc, double lnorm, const cv::Mat &img, int cx, int cy,
-            int h);
+// The (2h+1)^2 patch centred at (cx, cy); false when it has no texture (a flat patch has no
+// correlation peak to find).
+bool centred_patch(const cv::Mat &img, int cx, int cy, int h, Patch &out);
+
+// ZNCC of the patch against the patch of `img` centred at (cx, cy) (the same size); -1 when the
+// latter is flat. Computed from whole-number sums, so exactly, the same with or without the
+// vector loop.
+double zncc(const Patch &patch, const cv::Mat &img, int cx, int cy);
 
 // Linear interpolation of a row at x (x within [0, cols - 1)).
 inline double sample(const std::uint8_t *row, double x)
@@ -34,9 +43,8 @@ inline double sample(const std::uint8_t *row, double x)
 double parabola_offset(double c_minus, double c0, double c_plus);
 
 // Gauss-Newton steps on the right patch's x position xr (sub-pixel, same row cy): minimises the
-// difference of the zero-mean, unit-norm left and right patches, the right one interpolated
+// difference of the zero-mean, unit-norm patch and right patch, the right one interpolated
 // linearly. Returns xr unchanged when a step would leave the image or +-1 px around the start.
-double gauss_newton_x(const std::vector<float> &lc, double lnorm, const cv::Mat &img, double xr,
-                      int cy, int h);
+double gauss_newton_x(const Patch &patch, const cv::Mat &img, double xr, int cy);
 
 } // namespace treestereo::detail
