@@ -12,14 +12,13 @@ bool centred_patch(const cv::Mat &img, int cx, int cy, int h, Patch &out)
 {
   const int n = 2 * h + 1;
   out.h = h;
-  out.n = n;
-  out.stride = (n + 7) / 8 * 8;
-  out.pixels.assign(std::size_t(n * out.stride), 0);
+  const int stride = out.stride();
+  out.pixels.assign(std::size_t(n * stride), 0);
   out.centred.resize(std::size_t(n * n));
   std::int64_t sum = 0, ss = 0;
   for (int y = 0; y < n; ++y) {
     const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y) + (cx - h);
-    std::int16_t *px = &out.pixels[std::size_t(y * out.stride)];
+    std::int16_t *px = &out.pixels[std::size_t(y * stride)];
     for (int x = 0; x < n; ++x) {
       px[x] = row[x];
       out.centred[std::size_t(y * n + x)] = row[x];
@@ -41,23 +40,23 @@ bool centred_patch(const cv::Mat &img, int cx, int cy, int h, Patch &out)
 
 double zncc(const Patch &l, const cv::Mat &img, int cx, int cy)
 {
-  const int h = l.h, n = l.n, x0 = cx - h;
+  const int h = l.h, n = l.n(), stride = l.stride(), x0 = cx - h;
   std::int64_t sr = 0, srr = 0, slr = 0;
 #if CV_SIMD128
   // Eight pixels at a time (the 16-bit products summed in pairs into 32 bits: at most
   // 2 * 255 * 255 a lane a step, 441 * 255 * 255 in all for a 21x21 patch). The padded rows read
   // up to stride - n pixels past the patch, so only where the image has them.
-  if (x0 + l.stride <= img.cols) {
-    const int chunks = l.stride / 8, last = n - 8 * (chunks - 1); // lanes of the last chunk
-    alignas(16) std::int16_t m[8];
-    for (int k = 0; k < 8; ++k)
-      m[k] = k < last ? std::int16_t(-1) : std::int16_t(0);
-    const cv::v_int16x8 tail = cv::v_load(m), ones = cv::v_setall_s16(1);
+  if (x0 + stride <= img.cols) {
+    // The last chunk keeps its first n - 8 (chunks - 1) lanes (1..8): a window into -1s then 0s.
+    static const std::int16_t kKeep[16] = {-1, -1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, 0};
+    const int chunks = stride / 8;
+    const cv::v_int16x8 tail = cv::v_load(kKeep + 8 - (n - 8 * (chunks - 1))),
+                        ones = cv::v_setall_s16(1);
     cv::v_int32x4 a_r = cv::v_setzero_s32(), a_rr = cv::v_setzero_s32(),
                   a_lr = cv::v_setzero_s32();
     for (int y = 0; y < n; ++y) {
       const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y) + x0;
-      const std::int16_t *lp = &l.pixels[std::size_t(y * l.stride)];
+      const std::int16_t *lp = &l.pixels[std::size_t(y * stride)];
       for (int c = 0; c < chunks; ++c) {
         cv::v_int16x8 r = cv::v_reinterpret_as_s16(cv::v_load_expand(row + 8 * c));
         if (c == chunks - 1)
@@ -75,7 +74,7 @@ double zncc(const Patch &l, const cv::Mat &img, int cx, int cy)
   {
     for (int y = 0; y < n; ++y) {
       const std::uint8_t *row = img.ptr<std::uint8_t>(cy - h + y) + x0;
-      const std::int16_t *lp = &l.pixels[std::size_t(y * l.stride)];
+      const std::int16_t *lp = &l.pixels[std::size_t(y * stride)];
       for (int x = 0; x < n; ++x) {
         const int v = row[x];
         sr += v;
@@ -98,7 +97,7 @@ double zncc(const Patch &l, const cv::Mat &img, int cx, int cy)
 // would leave the image or +-1 px around the start.
 double gauss_newton_x(const Patch &patch, const cv::Mat &img, double xr, int cy)
 {
-  const int h = patch.h, n = patch.n;
+  const int h = patch.h, n = patch.n();
   const std::vector<float> &lc = patch.centred;
   const double lnorm = patch.norm;
   // Scratch of this thread, reused from call to call (densification calls this for every kept

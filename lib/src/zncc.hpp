@@ -14,8 +14,10 @@ namespace treestereo::detail {
 // A patch of one view to correlate with the other: its pixels (each row padded with zeros to a
 // multiple of 8, for the vector loop), their sums, and the zero-mean copy Gauss-Newton fits.
 struct Patch {
-  int h = 0, n = 0, stride = 0;     // half window, side 2h + 1, int16 per padded row
-  std::vector<std::int16_t> pixels; // n rows of `stride`, zero beyond column n
+  int h = 0;                        // half window
+  std::vector<std::int16_t> pixels; // n() rows of stride(), zero beyond column n()
+  int n() const { return 2 * h + 1; }              // side
+  int stride() const { return (n() + 7) / 8 * 8; } // int16 per padded row
   std::vector<float> centred;       // n x n, the pixels less their mean
   double norm = 0;                  // of `centred`
   std::int64_t sum = 0, var = 0;    // sum of the pixels; n^2 * sum of squares - sum^2

@@ -73,8 +73,8 @@ TEST(Zncc, TheSameWithAndWithoutTheVectorLoop)
     Patch p;
     ASSERT_TRUE(centred_patch(wide, 12, 12, h, p));
     const int cx = 23 - h; // the patch's last column is the image's
-    ASSERT_GT(cx - h + p.stride, narrow.cols);
-    ASSERT_LE(cx - h + p.stride, wide.cols);
+    ASSERT_GT(cx - h + p.stride(), narrow.cols);
+    ASSERT_LE(cx - h + p.stride(), wide.cols);
     EXPECT_EQ(zncc(p, narrow, cx, 12), zncc(p, wide, cx, 12)) << "h " << h;
     EXPECT_NEAR(zncc(p, narrow, cx, 12), reference(wide, 12, 12, wide, cx, 12, h), 1e-12);
   }
