@@ -1,6 +1,8 @@
 // Reading, writing, checking and scaling stereo calibrations.
 #include "treestereo/calibration.hpp"
 
+#include "document.hpp"
+
 #include <opencv2/core.hpp>
 
 #include <zlib.h>
@@ -26,6 +28,8 @@ double StereoCalibration::baseline_mm() const
 }
 
 namespace {
+
+using detail::DocNode;
 
 // Tolerances for "is a rotation": files written by hand or by MATLAB carry 4-6 digits.
 constexpr double kRotationTolerance = 1e-3;
@@ -58,8 +62,8 @@ std::string trim(const std::string &s)
 constexpr std::size_t kMaxCalibrationBytes = std::size_t(16) << 20;
 
 // Reads the file (decompressed when it ends in .gz). It must exist and be readable, and must not
-// be some other kind of file: FileStorage's own error for a PNG ("input file is invalid") would
-// not tell the person what went wrong.
+// be some other kind of file: a syntax error about a PNG's first line would not tell the person
+// what went wrong.
 std::string read_checked(const std::string &file)
 {
   // An ifstream opens a directory without complaint and then reads nothing, which would be
@@ -103,180 +107,33 @@ std::string read_checked(const std::string &file)
   return text;
 }
 
-// OpenCV's YAML reader insists on its "%YAML:1.0" first line, which ROS camera_info files (and
-// YAML written by other tools) do not have: give it one, dropping any other YAML directive.
-std::string with_opencv_yaml_header(const std::string &text)
+// The file's document: XML when it starts with '<', else YAML. Read by lib's own strict reader
+// (document.hpp), never by OpenCV's parser, which hangs or crashes on some malformed text.
+DocNode open_document(const std::string &file)
 {
-  const auto first = text.find_first_not_of(" \t\r\n");
-  if (first == std::string::npos || text[first] == '<' || text.compare(first, 6, "%YAML:") == 0)
-    return text;
-  std::string body = text.substr(first);
-  if (body.compare(0, 5, "%YAML") == 0) {
-    const auto eol = body.find('\n');
-    body = eol == std::string::npos ? std::string() : body.substr(eol + 1);
-  }
-  return "%YAML:1.0\n" + body;
-}
-
-// OpenCV 4.6's own YAML parser loops forever on some malformed text, so YAML is checked here
-// before it reaches the parser, and text with either of these problems is refused (XML and
-// JSON are left to OpenCV). Returns what is wrong with the first bad line ("line N ..."), or
-// an empty string.
-// - Block indentation: a line that dedents must come back to the column of an enclosing level
-//   (fuzz-calibration's first find: "%YAML:1.0\n   rows: 1\n A---\nx", a dedent to a column
-//   between two levels).
-// - The top level: a calibration file's root is a map, so every line at column 0 is a key
-//   ("name:" or "name: value"), the document marker "---" or "...", a comment, or the leading
-//   %YAML directive (its second find: "%YAML:1.0\n----~\n~\n-"), and the first such line comes
-//   before any indented one (a root indented to column k ends at the first line left of k, and
-//   the parser's document loop then hangs on what follows, as on "    - 1\na:\n  - a: 1").
-// - One document: after a line starting "..." at column 0 (the document's end) only blank lines
-//   and comments may follow (its third find: "a: 1\n...\n  - 1", an indented "-" after the end);
-//   "---" (the document's start) stands alone on its line, at most once, before the first key
-//   (fuzzing's next find: "--- - x\n--- -x\n--- --- d", a "---" with text after it, repeated).
-//   This holds for flow-style ({...}) text too, which OpenCV reads with the same parser.
-std::string yaml_problem(const std::string &text)
-{
-  const std::size_t first = text.find_first_not_of(" \t\r\n");
-  if (first != std::string::npos && text[first] == '<')
-    return "";
-  const bool flow = first != std::string::npos && text[first] == '{';
-  std::vector<std::size_t> levels{0};
-  std::size_t line_no = 0, end_line = 0;
-  // seen_content: any line but blanks and comments; seen_body: any but those, the directive
-  // and '---'; seen_key: a top-level key
-  bool seen_content = false, seen_body = false, seen_key = false, seen_marker = false;
-  for (std::size_t pos = 0; pos <= text.size();) {
-    const std::size_t end = std::min(text.find('\n', pos), text.size());
-    ++line_no;
-    std::string line = text.substr(pos, end - pos);
-    pos = end + 1;
-    while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t'))
-      line.pop_back();
-    const std::size_t indent = line.find_first_not_of(' ');
-    if (indent == std::string::npos || line[indent] == '#')
-      continue; // blank or a comment
-    if (end_line > 0)
-      return "line " + std::to_string(line_no) + " follows the end of the document ('...' on line " +
-             std::to_string(end_line) + "): a calibration file holds one YAML document";
-    if (line.compare(0, 3, "...") == 0) {
-      end_line = line_no;
-      const std::size_t rest = line.find_first_not_of(' ', 3);
-      if (rest != std::string::npos && line[rest] != '#')
-        return "line " + std::to_string(line_no) + " has text after the document's end '...'";
-      continue;
-    }
-    if (line.compare(0, 3, "---") == 0) {
-      const std::size_t rest = line.find_first_not_of(' ', 3);
-      if (seen_marker || seen_body)
-        return "line " + std::to_string(line_no) +
-               " starts a second YAML document: a calibration file holds one";
-      if (rest != std::string::npos && line[rest] != '#')
-        return "line " + std::to_string(line_no) + " has text after the document marker '---'";
-      seen_marker = true;
-      continue;
-    }
-    const bool directive = !seen_content && indent == 0 && line[0] == '%';
-    seen_content = true;
-    if (directive)
-      continue;
-    seen_body = true;
-    if (flow)
-      continue; // a flow collection's lines may be indented any way
-    if (indent > levels.back()) {
-      levels.push_back(indent);
-    } else {
-      while (levels.back() > indent)
-        levels.pop_back();
-      if (levels.back() != indent)
-        return "line " + std::to_string(line_no) + " is indented to a column no enclosing line has";
-    }
-    if (indent > 0) {
-      if (!seen_key)
-        return "line " + std::to_string(line_no) +
-               " is indented, but a calibration file's top level starts at column 0";
-      continue; // inside a key's value
-    }
-    const unsigned char c = static_cast<unsigned char>(line[0]);
-    const std::size_t colon = line.find(':');
-    const bool key = (std::isalpha(c) || c == '_' || c == '"' || c == '\'') &&
-                     colon != std::string::npos &&
-                     (colon + 1 == line.size() || line[colon + 1] == ' ');
-    if (!key)
-      return "line " + std::to_string(line_no) +
-             " starts at column 0 but is no key: a calibration file's top level is a map of "
-             "'name: value' lines";
-    seen_key = true;
-  }
-  return "";
-}
-
-// Opens a FileStorage for reading; a syntax error becomes a CalibrationError naming the file.
-cv::FileStorage open_for_reading(const std::string &file)
-{
-  const std::string text = read_checked(file);
-  if (const std::string bad = yaml_problem(text); !bad.empty())
-    throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (" + bad + ")");
-  cv::FileStorage fs;
+  const std::string content = read_checked(file);
+  std::string_view text = content;
+  if (text.compare(0, 3, "\xef\xbb\xbf") == 0) // a UTF-8 byte order mark
+    text.remove_prefix(3);
+  DocNode root;
   try {
-    fs.open(with_opencv_yaml_header(text), cv::FileStorage::READ | cv::FileStorage::MEMORY);
-  } catch (const cv::Exception &e) {
-    throw CalibrationError(file, "", "not a valid OpenCV YAML/XML file (" + trim(e.err) + ")");
+    const auto first = text.find_first_not_of(" \t\r\n");
+    root = first != text.npos && text[first] == '<' ? detail::parse_xml(text)
+                                                    : detail::parse_yaml(text);
+  } catch (const detail::DocError &e) {
+    throw CalibrationError(file, "",
+                           std::string("not a valid OpenCV YAML/XML file (") + e.what() + ")");
   }
-  if (!fs.isOpened())
-    throw CalibrationError(file, "", "cannot be parsed as an OpenCV YAML/XML file");
-  if (fs.root().empty() || !fs.root().isMap())
+  if (!root.is_map() || root.fields.empty())
     throw CalibrationError(file, "", "holds no keys: not a calibration file");
-  return fs;
+  return root;
 }
 
-// OpenCV's reader allocates rows x cols from the file before it counts the data, so a corrupt
-// size asks for gigabytes (found by fuzzing: "cols: `3" read as a huge number). Calibration
-// matrices are small: check the header first.
-constexpr int kMaxMatrixSide = 16;
-
-void check_matrix_node(const cv::FileNode &node, const std::string &file, const std::string &key)
+// The key's node, or nullptr when it is absent or has no value.
+const DocNode *value_of(const DocNode &map, const std::string &key)
 {
-  if (!node.isMap() || !node["rows"].isInt() || !node["cols"].isInt() || !node["data"].isSeq())
-    throw CalibrationError(file, key, "is not an opencv-matrix (expected integer rows and cols, "
-                                      "dt, and a data list)");
-  const int rows = static_cast<int>(node["rows"]), cols = static_cast<int>(node["cols"]);
-  if (rows < 1 || cols < 1 || rows > kMaxMatrixSide || cols > kMaxMatrixSide)
-    throw CalibrationError(file, key, "is " + std::to_string(rows) + "x" + std::to_string(cols) +
-                                          ": a calibration matrix has 1 to " +
-                                          std::to_string(kMaxMatrixSide) + " rows and columns");
-  const std::size_t n = node["data"].size();
-  if (n % (static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols)) != 0 || n == 0)
-    throw CalibrationError(file, key, "rows x cols = " + std::to_string(rows) + "x" +
-                                          std::to_string(cols) + " but data has " +
-                                          std::to_string(n) + " values");
-}
-
-// Reads an opencv-matrix node as CV_64F. Missing key: empty Mat when optional, else an error.
-cv::Mat read_matrix(const cv::FileStorage &fs, const std::string &file, const std::string &key,
-                    bool required)
-{
-  const cv::FileNode node = fs[key];
-  if (node.empty() || node.isNone()) {
-    if (required)
-      throw CalibrationError(file, key, "missing key");
-    return {};
-  }
-  check_matrix_node(node, file, key);
-  cv::Mat m;
-  try {
-    node >> m;
-  } catch (const cv::Exception &e) {
-    throw CalibrationError(file, key, "is not a matrix (" + trim(e.err) + ")");
-  }
-  if (m.empty())
-    throw CalibrationError(file, key, "is not an opencv-matrix (expected rows, cols, dt, data)");
-  if (m.channels() != 1)
-    throw CalibrationError(file, key, "has " + std::to_string(m.channels()) +
-                                          " channels, expected a single-channel matrix");
-  cv::Mat d;
-  m.convertTo(d, CV_64F);
-  return d;
+  const DocNode *n = map.find(key);
+  return n && !n->is_null() ? n : nullptr;
 }
 
 // A count or size read as a double: converting an out-of-range or NaN double to int is
@@ -288,65 +145,132 @@ int checked_int(double v, const std::string &file, const std::string &key)
   return static_cast<int>(v);
 }
 
-int read_int(const cv::FileStorage &fs, const std::string &file, const std::string &key)
+double number_of(const DocNode &n, const std::string &file, const std::string &key)
 {
-  const cv::FileNode node = fs[key];
-  if (node.empty() || node.isNone())
-    return 0;
-  if (!node.isInt() && !node.isReal())
+  if (!n.is_number())
     throw CalibrationError(file, key, "must be a number");
-  return checked_int(node.real(), file, key);
+  return n.number();
+}
+
+// A matrix's data: a list of numbers (in XML a single value stands alone).
+std::vector<double> read_numbers(const DocNode &data, const std::string &file,
+                                 const std::string &key)
+{
+  if (!data.is_seq() && data.kind != DocNode::Kind::Scalar)
+    throw CalibrationError(file, key, "data must be a list of numbers");
+  std::vector<double> v;
+  for (const DocNode &e : data.is_seq() ? data.items : std::vector<DocNode>{data}) {
+    if (!e.is_number())
+      throw CalibrationError(file, key, "data must hold numbers only");
+    v.push_back(e.number());
+  }
+  return v;
+}
+
+void check_count(std::size_t n, int rows, int cols, const std::string &file, const std::string &key)
+{
+  if (rows <= 0 || cols <= 0 ||
+      n != static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols))
+    throw CalibrationError(file, key, "rows x cols = " + std::to_string(rows) + "x" +
+                                          std::to_string(cols) + " but data has " +
+                                          std::to_string(n) + " values");
+}
+
+// Calibration matrices are small: a larger side is a corrupt file (fuzzing found "cols: `3"
+// read as a huge number, for which OpenCV's reader allocated gigabytes).
+constexpr int kMaxMatrixSide = 16;
+
+// Reads an opencv-matrix {rows, cols, dt, data} as CV_64F. Missing key: an empty Mat when
+// optional, else an error.
+cv::Mat read_matrix(const DocNode &root, const std::string &file, const std::string &key,
+                    bool required)
+{
+  const DocNode *node = value_of(root, key);
+  if (!node) {
+    if (required)
+      throw CalibrationError(file, key, "missing key");
+    return {};
+  }
+  const DocNode *rows = node->find("rows"), *cols = node->find("cols"), *dt = node->find("dt"),
+                *data = node->find("data");
+  if (!node->is_map() || !rows || !rows->is_integer() || !cols || !cols->is_integer() || !dt ||
+      dt->kind != DocNode::Kind::Scalar || !data)
+    throw CalibrationError(file, key, "is not an opencv-matrix (expected integer rows and cols, "
+                                      "dt, and a data list)");
+  const int r = checked_int(rows->number(), file, key), c = checked_int(cols->number(), file, key);
+  if (r < 1 || c < 1 || r > kMaxMatrixSide || c > kMaxMatrixSide)
+    throw CalibrationError(file, key, "is " + std::to_string(r) + "x" + std::to_string(c) +
+                                          ": a calibration matrix has 1 to " +
+                                          std::to_string(kMaxMatrixSide) + " rows and columns");
+  // dt: OpenCV's element type, an optional channel count and one of u c w s i f d h.
+  const std::string &type = dt->text;
+  const std::size_t letter = type.find_first_not_of("0123456789");
+  if (letter == std::string::npos || letter + 1 != type.size() || letter > 3 ||
+      std::string_view("ucwsifdh").find(type[letter]) == std::string_view::npos)
+    throw CalibrationError(file, key,
+                           "has dt '" + type + "': expected an element type such as d or f");
+  const int channels = letter == 0 ? 1 : std::stoi(type.substr(0, letter));
+  if (channels != 1)
+    throw CalibrationError(file, key, "has " + std::to_string(channels) +
+                                          " channels, expected a single-channel matrix");
+  const std::vector<double> v = read_numbers(*data, file, key);
+  check_count(v.size(), r, c, file, key);
+  return cv::Mat(v, true).reshape(1, r);
+}
+
+int read_int(const DocNode &root, const std::string &file, const std::string &key)
+{
+  const DocNode *node = value_of(root, key);
+  return node ? checked_int(number_of(*node, file, key), file, key) : 0;
 }
 
 // image_width/image_height, or an empty size when both are absent.
-cv::Size read_image_size(const cv::FileStorage &fs, const std::string &file)
+cv::Size read_image_size(const DocNode &root, const std::string &file)
 {
-  return {read_int(fs, file, "image_width"), read_int(fs, file, "image_height")};
+  return {read_int(root, file, "image_width"), read_int(root, file, "image_height")};
 }
 
-bool has_key(const cv::FileStorage &fs, const std::string &key)
+bool has_key(const DocNode &root, const std::string &key)
 {
-  const cv::FileNode n = fs[key];
-  return !n.empty() && !n.isNone();
+  return value_of(root, key) != nullptr;
 }
 
-void read_intrinsics(const cv::FileStorage &fs, const std::string &file, StereoCalibration &c)
+void read_intrinsics(const DocNode &root, const std::string &file, StereoCalibration &c)
 {
-  c.M1 = read_matrix(fs, file, "M1", true);
-  c.D1 = read_matrix(fs, file, "D1", true);
-  c.M2 = read_matrix(fs, file, "M2", true);
-  c.D2 = read_matrix(fs, file, "D2", true);
+  c.M1 = read_matrix(root, file, "M1", true);
+  c.D1 = read_matrix(root, file, "D1", true);
+  c.M2 = read_matrix(root, file, "M2", true);
+  c.D2 = read_matrix(root, file, "D2", true);
 }
 
-void read_extrinsics(const cv::FileStorage &fs, const std::string &file, StereoCalibration &c)
+void read_extrinsics(const DocNode &root, const std::string &file, StereoCalibration &c)
 {
-  c.R = read_matrix(fs, file, "R", true);
-  c.T = read_matrix(fs, file, "T", true);
-  c.R1 = read_matrix(fs, file, "R1", false);
-  c.R2 = read_matrix(fs, file, "R2", false);
-  c.P1 = read_matrix(fs, file, "P1", false);
-  c.P2 = read_matrix(fs, file, "P2", false);
-  c.Q = read_matrix(fs, file, "Q", false);
+  c.R = read_matrix(root, file, "R", true);
+  c.T = read_matrix(root, file, "T", true);
+  c.R1 = read_matrix(root, file, "R1", false);
+  c.R2 = read_matrix(root, file, "R2", false);
+  c.P1 = read_matrix(root, file, "P1", false);
+  c.P2 = read_matrix(root, file, "P2", false);
+  c.Q = read_matrix(root, file, "Q", false);
 }
 
-void read_pixel_size(const cv::FileStorage &fs, const std::string &file, StereoCalibration &c)
+void read_pixel_size(const DocNode &root, const std::string &file, StereoCalibration &c)
 {
-  const cv::FileNode n = fs["pixel_size_um"];
-  if (n.empty() || n.isNone())
-    return;
-  if (!n.isReal() && !n.isInt())
-    throw CalibrationError(file, "pixel_size_um", "must be a number (micrometres)");
-  c.pixel_size_um = n.real();
+  if (const DocNode *n = value_of(root, "pixel_size_um")) {
+    if (!n->is_number())
+      throw CalibrationError(file, "pixel_size_um", "must be a number (micrometres)");
+    c.pixel_size_um = n->number();
+  }
 }
 
 StereoCalibration load_opencv(const std::string &file)
 {
-  cv::FileStorage fs = open_for_reading(file);
+  const DocNode doc = open_document(file);
   StereoCalibration c;
-  read_intrinsics(fs, file, c);
-  read_extrinsics(fs, file, c);
-  read_pixel_size(fs, file, c);
-  c.image_size = read_image_size(fs, file);
+  read_intrinsics(doc, file, c);
+  read_extrinsics(doc, file, c);
+  read_pixel_size(doc, file, c);
+  c.image_size = read_image_size(doc, file);
   validate_calibration(c, file);
   return c;
 }
@@ -355,8 +279,8 @@ StereoCalibration load_opencv(const std::string &file)
 // (R T R1 R2 P1 P2 Q), neither with the image size: take it from whichever file has it.
 StereoCalibration load_opencv_split(const std::string &intr_file, const std::string &extr_file)
 {
-  cv::FileStorage fi = open_for_reading(intr_file);
-  cv::FileStorage fe = open_for_reading(extr_file);
+  const DocNode fi = open_document(intr_file);
+  const DocNode fe = open_document(extr_file);
   StereoCalibration c;
   read_intrinsics(fi, intr_file, c);
   read_extrinsics(fe, extr_file, c);
@@ -370,29 +294,25 @@ StereoCalibration load_opencv_split(const std::string &intr_file, const std::str
 }
 
 // ROS camera_info stores matrices as {rows, cols, data: [...]}.
-cv::Mat read_ros_matrix(const cv::FileStorage &fs, const std::string &file, const std::string &key,
+cv::Mat read_ros_matrix(const DocNode &root, const std::string &file, const std::string &key,
                         int rows, int cols)
 {
-  const cv::FileNode node = fs[key];
-  if (node.empty() || node.isNone())
+  const DocNode *node = value_of(root, key);
+  if (!node)
     throw CalibrationError(file, key, "missing key");
-  if (!node.isMap() || node["data"].empty())
+  const DocNode *data = node->find("data");
+  if (!node->is_map() || !data || data->is_null())
     throw CalibrationError(file, key, "expected a ROS matrix {rows, cols, data}");
-  const int r = node["rows"].empty() ? rows : checked_int(node["rows"].real(), file, key + ".rows");
-  const int k = node["cols"].empty() ? cols : checked_int(node["cols"].real(), file, key + ".cols");
-  const cv::FileNode data = node["data"];
-  if (!data.isSeq())
+  const auto count = [&](const char *name, int otherwise) {
+    const DocNode *n = value_of(*node, name);
+    return n ? checked_int(number_of(*n, file, key + "." + name), file, key + "." + name)
+             : otherwise;
+  };
+  const int r = count("rows", rows), k = count("cols", cols);
+  if (!data->is_seq())
     throw CalibrationError(file, key, "data must be a list of numbers");
-  std::vector<double> v;
-  for (const cv::FileNode &e : data) {
-    if (!e.isReal() && !e.isInt())
-      throw CalibrationError(file, key, "data must hold numbers only");
-    v.push_back(e.real());
-  }
-  if (r <= 0 || k <= 0 || static_cast<std::size_t>(r) * static_cast<std::size_t>(k) != v.size())
-    throw CalibrationError(file, key, "rows x cols = " + std::to_string(r) + "x" +
-                                          std::to_string(k) + " but data has " +
-                                          std::to_string(v.size()) + " values");
+  const std::vector<double> v = read_numbers(*data, file, key);
+  check_count(v.size(), r, k, file, key);
   // The distortion vector's length varies; every other shape is fixed.
   if (rows > 0 && (r != rows || k != cols))
     throw CalibrationError(file, key, "is " + std::to_string(r) + "x" + std::to_string(k) +
@@ -408,16 +328,16 @@ struct RosCamera {
 
 RosCamera read_ros_camera(const std::string &file)
 {
-  cv::FileStorage fs = open_for_reading(file);
+  const DocNode doc = open_document(file);
   RosCamera cam;
-  cam.size = read_image_size(fs, file);
+  cam.size = read_image_size(doc, file);
   if (cam.size.width <= 0 || cam.size.height <= 0)
     throw CalibrationError(file, "image_width", "image size missing or not positive "
                                                 "(image_width, image_height)");
-  cam.K = read_ros_matrix(fs, file, "camera_matrix", 3, 3);
-  cam.D = read_ros_matrix(fs, file, "distortion_coefficients", 0, 0).reshape(1, 1);
-  cam.R = read_ros_matrix(fs, file, "rectification_matrix", 3, 3);
-  cam.P = read_ros_matrix(fs, file, "projection_matrix", 3, 4);
+  cam.K = read_ros_matrix(doc, file, "camera_matrix", 3, 3);
+  cam.D = read_ros_matrix(doc, file, "distortion_coefficients", 0, 0).reshape(1, 1);
+  cam.R = read_ros_matrix(doc, file, "rectification_matrix", 3, 3);
+  cam.P = read_ros_matrix(doc, file, "projection_matrix", 3, 4);
   return cam;
 }
 
@@ -618,9 +538,7 @@ StereoCalibration load_calibration(const std::string &spec)
   if (first.empty() || second.empty() || second.find(';') != std::string::npos)
     throw CalibrationError(spec, "", "expected two files separated by one ';' "
                                      "(\"left.yaml;right.yaml\" or \"intrinsics.yml;extrinsics.yml\")");
-  cv::FileStorage probe = open_for_reading(first);
-  const bool opencv_split = has_key(probe, "M1");
-  probe.release();
+  const bool opencv_split = has_key(open_document(first), "M1");
   return opencv_split ? load_opencv_split(first, second) : load_ros_pair(first, second);
 }
 
