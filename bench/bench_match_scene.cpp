@@ -7,10 +7,12 @@
 // perturbations of the right view (light -30 % / +30 %, rotation 90 degrees and scale 50 %, the
 // last two without the epipolar constraint, with siftmatch's upright SIFT and with OpenCV's,
 // which is rotation invariant). Also: a breakdown of the wrong matches by kind,
-// Middlebury Jadeplant before/after, and timing rows.
+// Middlebury Jadeplant before/after (--only middlebury: the other four Middlebury scenes too, held
+// out), and timing rows.
 //
 //   bench-match-scene [--seeds 1,2,3] [--distances 1.8,2.2] [--size 1296x972] [--runs 3]
-//                     [--only table,errors,row,jadeplant,timing,step] [--set key=value,...]
+//                     [--only table,errors,row,jadeplant,middlebury,timing,step]
+//                     [--set key=value,...]
 //                     [--mask] [--data DIR]
 //
 // --set changes the settings of the "two-layer test on" rows (keys: min-zncc, min-zncc-drop,
@@ -106,11 +108,11 @@ std::vector<Perturbation> perturbations()
 // siftmatch's detection defaults where lib's differ: every row detects with them.
 void detection_defaults(MatchParams &p)
 {
-  p.detect.contrast_threshold = 0.035;
+  p.detect.contrast_threshold = 0.02;
   p.detect.mask_inset = 4; // only acts with a mask
   p.detect.engine = SiftEngine::Upright;
 }
-constexpr const char *kDetection = "contrast-threshold=0.035, mask-inset=4 (with a mask), upright";
+constexpr const char *kDetection = "contrast-threshold=0.02, mask-inset=4 (with a mask), upright";
 
 // The "two-layer test on" rows: siftmatch's defaults for the refinement's filters.
 void filters_on(MatchParams &p)
@@ -415,58 +417,65 @@ void errors(const std::vector<Pair> &pairs, const Options &o)
     }
 }
 
-// Middlebury Jadeplant (quarter size) as lib's test and siftmatch's element test run it: scale 1,
-// 1 px band, 0..ndisp, mutual, refinement; without and with the two-layer test (and siftmatch's
-// other refinement filters).
-void jadeplant(const Options &o)
+// The Middlebury 2014 scenes (quarter size) as lib's test and siftmatch's element test run
+// Jadeplant: scale 1, 1 px band, 0..ndisp, mutual, refinement; without and with the two-layer
+// test (and siftmatch's other refinement filters). Jadeplant is the target; the other
+// scenes are held out, to see whether a setting chosen on treetestsrc and Jadeplant carries over.
+void middlebury(const Options &o, bool jadeplant_only)
 {
-  const std::string dir = o.data + "/middlebury2014-quarter/Jadeplant";
-  if (!std::ifstream(dir + "/disp0GT.pfm").good()) {
-    std::printf("\n(Jadeplant skipped: %s not found)\n", dir.c_str());
-    return;
-  }
-  const MiddleburyScene s = load_middlebury_scene(dir);
-  std::printf("\n## Middlebury Jadeplant (quarter size, scale 1, 1 px band, 0..ndisp, mutual, "
+  std::printf("\n## Middlebury 2014 (quarter size, scale 1, 1 px band, 0..ndisp, mutual, "
               "refinement). Wrong by kind: edge = the matched disparity is the truth of a pixel "
               "within 3 px (nearer: the match is nearer than the keypoint's own truth); other: the "
-              "rest.\n\n| method | two-layer test | keypoints L/R | matches | evaluated "
+              "rest.\n\n| scene | method | two-layer test | keypoints L/R | matches | evaluated "
               "| wrong | correct %% | edge, nearer | edge, farther | other |\n"
-              "|---|---|---|---|---|---|---|---|---|---|\n");
-  for (MatchMethod method : {MatchMethod::Euclidean, MatchMethod::CosineNorm})
-    for (bool filters : {false, true}) {
-      MatchParams p;
-      detection_defaults(p);
-      p.matcher.method = method;
-      p.matcher.constraints.epipolar_tolerance = 1.0;
-      p.matcher.constraints.min_disparity = 0;
-      p.matcher.constraints.max_disparity = s.calib.ndisp;
-      filters_off(p);
-      if (filters) {
-        filters_on(p);
-        apply_set(p, o.set);
-      }
-      const StereoMatchResult r = match_stereo(s.left, s.right, cv::Mat(), cv::Mat(), p);
-      const MatchAccuracy acc = evaluate_matches(r.matches, s.disp_gt, s.mask_nocc, 1.0);
-      std::size_t nearer = 0, farther = 0, other = 0;
-      for (const StereoMatch &m : r.matches) {
-        const int x = int(std::lround(m.xl)), y = int(std::lround(m.yl));
-        if (x < 0 || y < 0 || x >= s.disp_gt.cols || y >= s.disp_gt.rows ||
-            (!s.mask_nocc.empty() && s.mask_nocc.at<std::uint8_t>(y, x) != 255))
-          continue;
-        const float t = s.disp_gt.at<float>(y, x), d = m.disparity();
-        if (!std::isfinite(t) || (std::abs(d - t) <= 1.0f && std::abs(m.yr - m.yl) <= 1.0f))
-          continue;
-        if (edge_ring(s.disp_gt, x, y, d) > 0)
-          (d > t ? nearer : farther) += 1;
-        else
-          ++other;
-      }
-      std::printf("| %s | %s | %zu/%zu | %zu | %zu | %zu | %.2f | %zu | %zu | %zu |\n",
-                  match_method_name(method), filters ? "on" : "off", r.stats.keypoints[0],
-                  r.stats.keypoints[1], r.matches.size(), acc.evaluated, acc.wrong(),
-                  100.0 * acc.correct_rate(), nearer, farther, other);
-      std::fflush(stdout);
+              "|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::vector<std::string> scenes{"Jadeplant"};
+  if (!jadeplant_only)
+    scenes = {"Adirondack", "Jadeplant", "Pipes", "Plants", "Teddy"};
+  for (const std::string &name : scenes) {
+    const std::string dir = o.data + "/middlebury2014-quarter/" + name;
+    if (!std::ifstream(dir + "/disp0GT.pfm").good()) {
+      std::printf("| %s | (skipped: no ground truth, %s/disp0GT.pfm) |\n", name.c_str(),
+                  dir.c_str());
+      continue;
     }
+    const MiddleburyScene s = load_middlebury_scene(dir);
+    for (MatchMethod method : {MatchMethod::Euclidean, MatchMethod::CosineNorm})
+      for (bool filters : {false, true}) {
+        MatchParams p;
+        detection_defaults(p);
+        p.matcher.method = method;
+        p.matcher.constraints.epipolar_tolerance = 1.0;
+        p.matcher.constraints.min_disparity = 0;
+        p.matcher.constraints.max_disparity = s.calib.ndisp;
+        filters_off(p);
+        if (filters) {
+          filters_on(p);
+          apply_set(p, o.set);
+        }
+        const StereoMatchResult r = match_stereo(s.left, s.right, cv::Mat(), cv::Mat(), p);
+        const MatchAccuracy acc = evaluate_matches(r.matches, s.disp_gt, s.mask_nocc, 1.0);
+        std::size_t nearer = 0, farther = 0, other = 0;
+        for (const StereoMatch &m : r.matches) {
+          const int x = int(std::lround(m.xl)), y = int(std::lround(m.yl));
+          if (x < 0 || y < 0 || x >= s.disp_gt.cols || y >= s.disp_gt.rows ||
+              (!s.mask_nocc.empty() && s.mask_nocc.at<std::uint8_t>(y, x) != 255))
+            continue;
+          const float t = s.disp_gt.at<float>(y, x), d = m.disparity();
+          if (!std::isfinite(t) || (std::abs(d - t) <= 1.0f && std::abs(m.yr - m.yl) <= 1.0f))
+            continue;
+          if (edge_ring(s.disp_gt, x, y, d) > 0)
+            (d > t ? nearer : farther) += 1;
+          else
+            ++other;
+        }
+        std::printf("| %s | %s | %s | %zu/%zu | %zu | %zu | %zu | %.2f | %zu | %zu | %zu |\n",
+                    name.c_str(), match_method_name(method), filters ? "on" : "off",
+                    r.stats.keypoints[0], r.stats.keypoints[1], r.matches.size(), acc.evaluated,
+                    acc.wrong(), 100.0 * acc.correct_rate(), nearer, farther, other);
+        std::fflush(stdout);
+      }
+  }
 }
 
 // The whole siftmatch step (both views detected concurrently, matching, refinement, filters),
@@ -488,14 +497,15 @@ void timing(const Options &o)
     double contrast;
     int inset; // mask-inset (acts on the canopy rows only)
   };
-  // The first two rows of each size: siftmatch's defaults before the fifth session (contrast
-  // 0.04, no inset) and now (0.035, inset 4).
+  // The first three rows of each size: siftmatch's defaults before the fifth session (contrast
+  // 0.04, no inset), before the ninth (0.035, inset 4) and now (0.02, inset 4).
   const Setting settings[] = {
       {{1296, 972}, 0.5, 0, 0.04, 0},    {{1296, 972}, 0.5, 0, 0.035, 4},
-      {{1296, 972}, 0.5, 0, 0.035, 0},   {{1296, 972}, 0.5, 0, 0.02, 0},
-      {{1296, 972}, 0.4, 0, 0.02, 0},    {{1296, 972}, 0.5, 1500, 0.02, 0},
-      {{1296, 972}, 0.25, 0, 0.02, 0},   {{2592, 1944}, 0.25, 0, 0.04, 0},
-      {{2592, 1944}, 0.25, 0, 0.035, 4}, {{2592, 1944}, 0.25, 0, 0.035, 0},
+      {{1296, 972}, 0.5, 0, 0.02, 4},    {{1296, 972}, 0.5, 0, 0.035, 0},
+      {{1296, 972}, 0.5, 0, 0.02, 0},    {{1296, 972}, 0.4, 0, 0.02, 0},
+      {{1296, 972}, 0.5, 1500, 0.02, 0}, {{1296, 972}, 0.25, 0, 0.02, 0},
+      {{2592, 1944}, 0.25, 0, 0.04, 0},  {{2592, 1944}, 0.25, 0, 0.035, 4},
+      {{2592, 1944}, 0.25, 0, 0.02, 4},  {{2592, 1944}, 0.25, 0, 0.035, 0},
       {{2592, 1944}, 0.25, 0, 0.02, 0},
   };
   cv::Size rendered;
@@ -607,8 +617,8 @@ int main(int argc, char **argv)
       if (want("errors"))
         errors(pairs, o);
     }
-    if (want("jadeplant"))
-      jadeplant(o);
+    if (want("jadeplant") || want("middlebury"))
+      middlebury(o, !want("middlebury"));
     if (want("timing"))
       timing(o);
     if (want("step"))
