@@ -26,6 +26,12 @@ namespace {
 constexpr int W = 480, H = 360;         // one view
 constexpr double FX = 1000, BASELINE = 50; // d = 50000 / Z: 500..10000 mm -> 5..100 px
 constexpr double D_TRUE = 23.37;
+/* Refinement's precision on this pair (siftmatch's defaults): the median error below 0.03 px,
+ * 99% of the matches within 0.1 px and every one within MAX_ERROR. Since contrast-threshold 0.02
+ * (ninth session) the pair gives 2911 matches instead of 2457, the weakest-textured of them
+ * refined to at most 0.102 px (0.085 px before; median 0.014 px and 95th percentile 0.039 /
+ * 0.041 px with either threshold). */
+constexpr double MAX_ERROR = 0.15;
 
 /* Smooth random texture (blurred noise stretched to 0..255), wider than the view so that both
  * views of the pair are cut from real texture (no border effects). */
@@ -182,8 +188,9 @@ guint check_synthetic(const char *format, const char *props = nullptr)
     const GstTreeStereoMatch &k = m->matches[i];
     const double d = double(k.xl) - double(k.xr);
     errors.push_back(std::abs(d - D_TRUE));
-    fail_unless(std::abs(d - D_TRUE) < 0.1, "%s: match %u (%.2f, %.2f) disparity %.3f, true %.2f",
-                format, i, k.xl, k.yl, d, D_TRUE);
+    fail_unless(std::abs(d - D_TRUE) < MAX_ERROR,
+                "%s: match %u (%.2f, %.2f) disparity %.3f, true %.2f", format, i, k.xl, k.yl, d,
+                D_TRUE);
     fail_unless(std::abs(k.yl - k.yr) < 0.5);
     /* each view's own coordinates: the right x is not offset by the side-by-side layout */
     fail_unless(k.xl >= 0 && k.xl < W && k.xr >= 0 && k.xr < W && k.yl >= 0 && k.yl < H);
@@ -195,6 +202,8 @@ guint check_synthetic(const char *format, const char *props = nullptr)
           "px\n",
           format, m->n_matches, med, p95, percentile(errors, 100));
   fail_unless(med < 0.03, "%s: median error %.3f px", format, med);
+  fail_unless(percentile(errors, 99) < 0.1, "%s: 99th percentile error %.3f px", format,
+              percentile(errors, 99));
 
   GstTreeStereoTimes times;
   const GstTreeStereoMatchStats st = pop_stats(rig.bus, &times);
@@ -396,7 +405,7 @@ GST_START_TEST(test_properties_change_while_playing)
   const guint inside = gst_buffer_get_tree_stereo_matches_meta(out)->n_matches;
   fail_unless(inside > 200 && inside > 10 * outside, "%u matches in range, %u out", inside,
               outside);
-  fail_unless(disparities_within(out, D_TRUE - 0.1, D_TRUE + 0.1));
+  fail_unless(disparities_within(out, D_TRUE - MAX_ERROR, D_TRUE + MAX_ERROR));
   gst_buffer_unref(out);
   pop_stats(rig.bus, nullptr);
 
@@ -427,7 +436,7 @@ GST_START_TEST(test_property_ranges)
       {"max-disparity", -1.0, 100000.0, -1.0},
       {"min-depth", 1.0, 1e6, 500.0},
       {"max-depth", 1.0, 1e7, 10000.0},
-      {"contrast-threshold", 0.001, 1.0, 0.035},
+      {"contrast-threshold", 0.001, 1.0, 0.02},
       {"scale", 0.0, 1.0, 0.0},
       {"min-zncc", -1.0, 1.0, 0.9},
       {"min-zncc-drop", 0.0, 2.0, 0.05},
@@ -574,10 +583,12 @@ GST_START_TEST(test_middlebury_jadeplant)
     return acc;
   };
   /* the defaults: the two-layer test drops most of the keypoints beside the branches that took
-   * their disparity (lib: 96.6% at 0..ndisp) */
+   * their disparity; issue 6's target, the paper's 98%, with siftmatch's defaults (since the
+   * ninth session: contrast-threshold 0.02; 170 evaluated, 3 wrong, 98.24%; at 0.035 it was
+   * 3 wrong of 114, 97.37%) */
   const MatchAccuracy layered = run(0);
-  fail_unless(layered.evaluated > 50, "evaluated %zu", layered.evaluated);
-  fail_unless(layered.correct_rate() >= 0.95, "correct %.3f", layered.correct_rate());
+  fail_unless(layered.evaluated > 140, "evaluated %zu", layered.evaluated);
+  fail_unless(layered.correct_rate() >= 0.98, "correct %.3f", layered.correct_rate());
 
   /* without it, as lib's test: Jadeplant's thin branches before a far wall keep it below the
    * paper's 98% */
