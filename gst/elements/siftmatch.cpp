@@ -21,7 +21,7 @@
  * descriptor windows straddle the background and whose matches mostly fail the two-layer test.
  * The low threshold became affordable with the upright SIFT: on 36 treetestsrc pairs at
  * 1296x972 it keeps 233 matches per pair in the canopy (163 at 0.035) at the same correct rate
- * (99.55%), and Middlebury Jadeplant reaches 98.2% (97.4%), for about 20% more CPU in the step
+ * (99.55%), and Middlebury Jadeplant reaches 98.2% (97.4%), for about 24% more CPU in the step
  * (docs/elements/siftmatch.md).
  *
  * The two-layer test is on by default (#siftmatch:layer-tolerance 0.5; lib keeps it off): on 9
