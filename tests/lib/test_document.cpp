@@ -167,8 +167,9 @@ TEST(Document, ReadsHandWrittenYaml)
   EXPECT_EQ(parse_yaml("a: -1e-999").find("a")->number(), 0.0);
   EXPECT_TRUE(parse_yaml("\n# nothing\n").is_null());
   // a plain scalar may hold blanks, also in a flow list: "1 2" is one string, not two numbers
-  const DocNode *one = parse_yaml("a: [1 2]").find("a");
-  ASSERT_TRUE(one->is_seq() && one->items.size() == 1);
+  const DocNode blanks = parse_yaml("a: [1 2]");
+  const DocNode *one = blanks.find("a");
+  ASSERT_TRUE(one && one->is_seq() && one->items.size() == 1);
   EXPECT_FALSE(one->items[0].is_number());
 }
 
