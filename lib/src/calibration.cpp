@@ -159,11 +159,15 @@ std::vector<double> read_numbers(const DocNode &data, const std::string &file,
   if (!data.is_seq() && data.kind != DocNode::Kind::Scalar)
     throw CalibrationError(file, key, "data must be a list of numbers");
   std::vector<double> v;
-  for (const DocNode &e : data.is_seq() ? data.items : std::vector<DocNode>{data}) {
+  const auto add = [&](const DocNode &e) {
     if (!e.is_number())
       throw CalibrationError(file, key, "data must hold numbers only");
     v.push_back(e.number());
-  }
+  };
+  if (data.is_seq())
+    std::for_each(data.items.begin(), data.items.end(), add);
+  else
+    add(data);
   return v;
 }
 
