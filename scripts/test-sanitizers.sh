@@ -44,5 +44,48 @@ start=$(date +%s)
 meson test -C "$build" --print-errorlogs --num-processes 2 --timeout-multiplier 4 \
   --no-suite install "$@"
 status=$?
+
+# LeakSanitizer's exit-time check can itself crash while it stops the process's threads ("Tracer
+# caught signal 11", then "LeakSanitizer has encountered a fatal error"): an intermittent fault
+# of the tool (google/sanitizers issue 1353), seen once in this suite (tool-measure). A test that
+# failed with that message and no report of its own (no AddressSanitizer error, no leak, no
+# undefined behaviour) runs once more, and its second result is the one counted.
+log="$build/meson-logs/testlog.json"
+if [ $status -ne 0 ] && [ -f "$log" ]; then
+  mapfile -t again < <(python3 - "$log" <<'PY'
+import json, sys
+for line in open(sys.argv[1]):
+    if not line.strip():
+        continue
+    t = json.loads(line)
+    out = t.get("stdout", "") + t.get("stderr", "")
+    own = ("ERROR: AddressSanitizer", "ERROR: LeakSanitizer: detected", "runtime error")
+    if (t["result"] not in ("OK", "SKIP", "EXPECTEDFAIL")
+            and "LeakSanitizer has encountered a fatal error" in out
+            and not any(o in out for o in own)):
+        print(t["name"].split(" / ", 1)[-1])
+PY
+)
+  if [ ${#again[@]} -gt 0 ]; then
+    echo "LeakSanitizer's tracer crashed at the exit of: ${again[*]}; running them once more"
+    mv "$log" "$log.first"
+    meson test -C "$build" --print-errorlogs --timeout-multiplier 4 "${again[@]}"
+    # the first run's log with the rerun tests' results in place of their first ones
+    status=$(python3 - "$log.first" "$log" <<'PY'
+import json, sys
+first = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+try:
+    rerun = {t["name"]: t for t in (json.loads(l) for l in open(sys.argv[2]) if l.strip())}
+except FileNotFoundError:
+    rerun = {}
+merged = [rerun.get(t["name"], t) for t in first]
+with open(sys.argv[2], "w") as out:
+    for t in merged:
+        out.write(json.dumps(t) + "\n")
+print(0 if all(t["result"] in ("OK", "SKIP", "EXPECTEDFAIL") for t in merged) else 1)
+PY
+)
+  fi
+fi
 echo "sanitizer test run: $(( $(date +%s) - start )) s, exit status $status"
 exit $status
