@@ -49,15 +49,6 @@ bool ends_with(const std::string &s, const std::string &suffix)
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-std::string trim(const std::string &s)
-{
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos)
-    return {};
-  const auto e = s.find_last_not_of(" \t\r\n");
-  return s.substr(b, e - b + 1);
-}
-
 // Calibration files are a few kB; a larger one (or a gzip bomb) is something else.
 constexpr std::size_t kMaxCalibrationBytes = std::size_t(16) << 20;
 
@@ -536,9 +527,9 @@ StereoCalibration load_calibration(const std::string &spec)
 {
   const auto semi = spec.find(';');
   if (semi == std::string::npos)
-    return load_opencv(trim(spec));
-  const std::string first = trim(spec.substr(0, semi));
-  const std::string second = trim(spec.substr(semi + 1));
+    return load_opencv(std::string(detail::trim(spec)));
+  const std::string first(detail::trim(std::string_view(spec).substr(0, semi)));
+  const std::string second(detail::trim(std::string_view(spec).substr(semi + 1)));
   if (first.empty() || second.empty() || second.find(';') != std::string::npos)
     throw CalibrationError(spec, "", "expected two files separated by one ';' "
                                      "(\"left.yaml;right.yaml\" or \"intrinsics.yml;extrinsics.yml\")");
@@ -558,7 +549,8 @@ void save_calibration(const StereoCalibration &c, const std::string &path)
   try {
     fs.open(path, cv::FileStorage::WRITE);
   } catch (const cv::Exception &e) {
-    throw CalibrationError(path, "", "cannot be written (" + trim(e.err) + ")");
+    throw CalibrationError(path, "",
+                           "cannot be written (" + std::string(detail::trim(e.err)) + ")");
   }
   if (!fs.isOpened())
     throw CalibrationError(path, "", "cannot be opened for writing");

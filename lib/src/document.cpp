@@ -50,14 +50,6 @@ std::string shown(char c)
   return std::string("\\x") + hex[u >> 4] + hex[u & 15];
 }
 
-std::string_view trim(std::string_view s)
-{
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string_view::npos)
-    return {};
-  return s.substr(b, s.find_last_not_of(" \t\r\n") - b + 1);
-}
-
 DocNode scalar(std::string text, bool quoted, int line)
 {
   DocNode n;
@@ -811,6 +803,14 @@ private:
 };
 
 } // namespace
+
+std::string_view trim(std::string_view s)
+{
+  const auto b = s.find_first_not_of(" \t\r\n");
+  if (b == std::string_view::npos)
+    return {};
+  return s.substr(b, s.find_last_not_of(" \t\r\n") - b + 1);
+}
 
 const DocNode *DocNode::find(std::string_view key) const
 {

@@ -54,6 +54,9 @@ public:
   using std::runtime_error::runtime_error;
 };
 
+// `s` without its leading and trailing blanks (space, tab, CR, LF).
+std::string_view trim(std::string_view s);
+
 // The document's root. Throws DocError. A text holding only blanks and comments gives a null root.
 DocNode parse_yaml(std::string_view text);
 DocNode parse_xml(std::string_view text);
