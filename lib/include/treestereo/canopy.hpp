@@ -1,0 +1,124 @@
+// The canopy in front, decided in 3D: which vegetation pixels belong to the row being sprayed.
+//
+// Colour says "plant"; in an orchard the grass, the next row and the tree's neighbours are all
+// plants. Depth says which of them is the canopy to spray (DESIGN.md "In an orchard"):
+//
+//  1. The ground: a plane fitted to the vegetation points (RANSAC, normal within
+//     ground_max_tilt_deg of the camera's vertical), or the rig's camera height and pitch.
+//     Points less than min_height_mm above it are ground (grass), not canopy.
+//  2. The near row: the nearest dominant depth layer of the remaining points (a histogram of
+//     their depths, each point weighted by the image area it stands for), from its front to
+//     the first empty stretch of layer_gap_mm behind it; or the user's spray zone
+//     [near_mm, far_mm].
+//  3. Along the row (mode Tree): the near row's points, projected onto x (metres), fall into
+//     segments separated by empty stretches of at least min_gap_mm. The tree in front is the
+//     segment that holds the optical axis, or else the one nearest to it. Mode Row keeps every
+//     segment (a hedgerow, a fruit wall).
+//  4. The mask: inside a connected region of the vegetation mask whose depth samples all agree,
+//     the colour edge is kept as it is. Where samples of the selected canopy and of anything
+//     else (the next row behind, a neighbour) share a region, each pixel goes to the nearest
+//     sample's class, and along that seam each pixel is tested again by photo-consistency: its
+//     patch is compared with the right view at the canopy's disparity and at the other class's
+//     disparity, and the better one wins.
+//
+// No shape model and no ground truth: only the views, the colour mask and the 3D points.
+#pragma once
+
+#include "treestereo/types.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace treestereo {
+
+enum class CanopyMode { Tree, Row };
+const char *canopy_mode_name(CanopyMode mode);               // "tree", "row"
+CanopyMode canopy_mode_from_name(const std::string &name);   // throws on an unknown name
+
+enum class GroundModel { Off, Fit, Rig };
+const char *ground_model_name(GroundModel model);            // "off", "fit", "rig"
+GroundModel ground_model_from_name(const std::string &name); // throws on an unknown name
+
+struct CanopyParams {
+  CanopyMode mode = CanopyMode::Tree;
+  // The spray zone in depth (Z, mm). Both 0: the near row found from the data. Otherwise the
+  // canopy is what lies in [near_mm, far_mm] (far_mm 0: no far limit).
+  double near_mm = 0, far_mm = 0;
+  // Height above the ground (mm): canopy between these (max 0: no upper limit).
+  double min_height_mm = 250, max_height_mm = 0;
+  GroundModel ground = GroundModel::Fit;
+  double camera_height_mm = 0;  // GroundModel::Rig: optical centre above the ground
+  double camera_pitch_deg = 0;  // GroundModel::Rig: positive = looking down
+  double ground_max_tilt_deg = 25; // Fit: the plane's normal within this of the camera's y axis
+  double ground_tolerance_mm = 40; // Fit: inlier distance
+  // The near row: histogram bins, a layer must hold this share of the weight, and it ends at
+  // the first empty stretch this long (or max_row_depth_mm behind its front).
+  double layer_bin_mm = 50, layer_min_share = 0.12, layer_gap_mm = 400;
+  double max_row_depth_mm = 1600;
+  // Along the row: empty stretches at least this long separate trees (mode Tree).
+  double min_gap_mm = 80;
+  // The seam test: half window of the patches (px); 0 = off (nearest sample only).
+  int seam_half_window = 3;
+};
+
+// Throws std::runtime_error naming the field when a value is out of range.
+void validate(const CanopyParams &params);
+
+// What each input point was found to be.
+enum class PointClass : std::uint8_t {
+  Unknown = 0, // invalid on input, or off the vegetation mask
+  Canopy,      // the selected canopy
+  Neighbour,   // the near row, another tree (mode Tree)
+  Behind,      // farther than the zone (the next row, the background)
+  Front,       // nearer than the zone
+  Ground,      // less than min_height_mm above the ground
+  High,        // above max_height_mm
+};
+
+// A plane n . X + d = 0 in the rectified-left frame (mm), n of unit length pointing up (-y).
+struct GroundPlane {
+  bool found = false;
+  cv::Vec3d normal{0, -1, 0};
+  double d = 0;
+  std::size_t inliers = 0;
+  // Height of a point above the plane (mm, positive above).
+  double height_of(const cv::Point3d &p) const { return normal.dot(cv::Vec3d(p.x, p.y, p.z)) + d; }
+};
+
+struct CanopyResult {
+  bool present = false;
+  Silhouette silhouette;            // the canopy's mask and figures, as segmentation gives them
+  double near_mm = 0, far_mm = 0;   // the zone used
+  bool zone_from_data = true;       // false: the user's spray zone
+  GroundPlane ground;
+  int n_segments = 0;               // near-row segments along the row
+  double left_mm = 0, right_mm = 0; // X extent of the selected canopy's points
+  std::vector<PointClass> classes;  // one per input point
+  std::size_t n_canopy_points = 0;
+  std::size_t n_seam_pixels = 0;    // pixels decided by the seam test
+};
+
+// A 3D point with the left-view pixel it was seen at.
+struct PixelPoint {
+  cv::Point2f px;  // rectified-left pixel
+  Point3 p;        // mm; p.valid false: no depth
+};
+
+// Decides the canopy. `vegetation`: the colour mask of the left view (CV_8U, non-zero = plant);
+// `points`: 3D points of the vegetation (any density; a grid is best); `left`, `right`: the
+// rectified views (8-bit grey or as `order` says), for the seam test (may be empty: no seam
+// test). Throws std::runtime_error on inconsistent input or parameters.
+CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoint> &points,
+                           const StereoGeometry &geometry, const CanopyParams &params,
+                           const cv::Mat &left = cv::Mat(), const cv::Mat &right = cv::Mat(),
+                           ChannelOrder order = ChannelOrder());
+
+// The share of the mask's pixels within radius_px of a point: how much of a silhouette has depth
+// support. 0 for an empty mask.
+double depth_support(const cv::Mat &mask, const std::vector<cv::Point2f> &px, double radius_px);
+
+} // namespace treestereo
