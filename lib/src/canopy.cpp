@@ -1,8 +1,16 @@
 #include "treestereo/canopy.hpp"
 
+#include "treestereo/features.hpp"
+#include "treestereo/segment.hpp"
+#include "zncc.hpp"
+
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -40,6 +48,526 @@ GroundModel ground_model_from_name(const std::string &name)
   if (name == "rig")
     return GroundModel::Rig;
   throw std::runtime_error("unknown ground model '" + name + "' (valid: off, fit, rig)");
+}
+
+namespace {
+
+void require(bool ok, const char *field, const char *range)
+{
+  if (!ok)
+    throw std::runtime_error(std::string("canopy parameter ") + field + " out of range: " + range);
+}
+
+constexpr double kDeg = CV_PI / 180.0;
+// The seam test: the nearer surface's patch must correlate at least this well to win.
+constexpr double kSeamMinScore = 0.6;
+
+// Image-area weights: each point stands for its share of the cell (cell x cell px) it falls in,
+// so that SIFT matches crowding on contrasted leaves do not outweigh an even grid.
+std::vector<double> area_weights(const std::vector<PixelPoint> &pts, const std::vector<int> &use,
+                                 cv::Size size, int cell)
+{
+  const int gw = (size.width + cell - 1) / cell, gh = (size.height + cell - 1) / cell;
+  std::vector<int> count(std::size_t(gw) * std::size_t(gh), 0);
+  auto cell_of = [&](const cv::Point2f &px) {
+    const int cx = std::clamp(int(px.x) / cell, 0, gw - 1), cy = std::clamp(int(px.y) / cell, 0, gh - 1);
+    return std::size_t(cy) * std::size_t(gw) + std::size_t(cx);
+  };
+  for (int i : use)
+    ++count[cell_of(pts[std::size_t(i)].px)];
+  std::vector<double> w(use.size());
+  for (std::size_t k = 0; k < use.size(); ++k)
+    w[k] = 1.0 / count[cell_of(pts[std::size_t(use[k])].px)];
+  return w;
+}
+
+// Runs of occupied bins separated by at least `gap_bins` empty ones: [first, last] bin pairs.
+// A bin is occupied when its weight reaches `min_weight`.
+std::vector<cv::Vec2i> occupied_runs(const std::vector<double> &hist, double min_weight,
+                                     int gap_bins)
+{
+  std::vector<cv::Vec2i> runs;
+  int start = -1, last = -1;
+  for (int b = 0; b < int(hist.size()); ++b) {
+    if (hist[std::size_t(b)] < min_weight)
+      continue;
+    if (start >= 0 && b - last - 1 >= gap_bins) {
+      runs.emplace_back(start, last);
+      start = -1;
+    }
+    if (start < 0)
+      start = b;
+    last = b;
+  }
+  if (start >= 0)
+    runs.emplace_back(start, last);
+  return runs;
+}
+
+// The ground plane by RANSAC over the points (deterministic), then least squares on the inliers.
+// Nothing may lie under the ground: a candidate plane with more than 2 % of the points well
+// below it (a slice through a canopy) is refused.
+GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
+                       const cv::Vec3d &up)
+{
+  GroundPlane best;
+  const std::size_t n = X.size();
+  if (n < 30)
+    return best;
+  const double cos_tilt = std::cos(p.ground_max_tilt_deg * kDeg);
+  const double tol = p.ground_tolerance_mm;
+  std::uint64_t state = 0x9e3779b97f4a7c15ULL;
+  auto next = [&state]() {
+    state ^= state << 13;
+    state ^= state >> 7;
+    state ^= state << 17;
+    return state;
+  };
+  std::size_t best_inliers = 0;
+  cv::Vec3d best_n;
+  double best_d = 0;
+  const std::size_t min_inliers = std::max<std::size_t>(30, n / 20);
+  for (int it = 0; it < 300; ++it) {
+    const cv::Point3d &a = X[next() % n], &b = X[next() % n], &c = X[next() % n];
+    cv::Vec3d nn = cv::Vec3d(b - a).cross(cv::Vec3d(c - a));
+    const double len = cv::norm(nn);
+    if (len < 1e-9)
+      continue;
+    nn /= len;
+    if (nn.dot(up) < 0)
+      nn = -nn;
+    if (nn.dot(up) < cos_tilt)
+      continue;
+    const double d = -nn.dot(cv::Vec3d(a.x, a.y, a.z));
+    std::size_t in = 0, under = 0;
+    for (const cv::Point3d &q : X) {
+      const double h = nn.dot(cv::Vec3d(q.x, q.y, q.z)) + d;
+      if (std::abs(h) <= tol)
+        ++in;
+      else if (h < -3 * tol)
+        ++under;
+    }
+    if (in > best_inliers && under * 50 <= n) {
+      best_inliers = in;
+      best_n = nn;
+      best_d = d;
+    }
+  }
+  if (best_inliers < min_inliers)
+    return best;
+  // Least squares on the inliers (the plane through their centroid, normal = the smallest
+  // principal axis).
+  cv::Mat pts(0, 3, CV_64F);
+  for (const cv::Point3d &q : X)
+    if (std::abs(best_n.dot(cv::Vec3d(q.x, q.y, q.z)) + best_d) <= tol)
+      pts.push_back(cv::Mat(cv::Matx13d(q.x, q.y, q.z)));
+  cv::PCA pca(pts, cv::noArray(), cv::PCA::DATA_AS_ROW);
+  cv::Vec3d nn(pca.eigenvectors.at<double>(2, 0), pca.eigenvectors.at<double>(2, 1),
+               pca.eigenvectors.at<double>(2, 2));
+  if (nn.dot(up) < 0)
+    nn = -nn;
+  if (nn.dot(up) < cos_tilt)
+    nn = best_n;
+  const cv::Vec3d m(pca.mean.at<double>(0), pca.mean.at<double>(1), pca.mean.at<double>(2));
+  best.found = true;
+  best.normal = nn;
+  best.d = -nn.dot(m);
+  best.inliers = std::size_t(pts.rows);
+  return best;
+}
+
+bool other_class(PointClass c)
+{
+  return c != PointClass::Canopy && c != PointClass::Unknown;
+}
+
+} // namespace
+
+void validate(const CanopyParams &p)
+{
+  require(p.near_mm >= 0 && std::isfinite(p.near_mm), "near_mm", ">= 0");
+  require(p.far_mm >= 0 && std::isfinite(p.far_mm), "far_mm", ">= 0");
+  require(p.far_mm == 0 || p.far_mm > p.near_mm, "far_mm", "0 or above near_mm");
+  require(p.min_height_mm >= -100000 && p.min_height_mm <= 100000, "min_height_mm", "-100 m to 100 m");
+  require(p.max_height_mm == 0 || p.max_height_mm > p.min_height_mm, "max_height_mm",
+          "0 or above min_height_mm");
+  require(p.ground != GroundModel::Rig || p.camera_height_mm > 0, "camera_height_mm",
+          "above 0 with the rig's ground model");
+  require(std::abs(p.camera_pitch_deg) <= 80, "camera_pitch_deg", "-80 to 80 degrees");
+  require(p.ground_max_tilt_deg > 0 && p.ground_max_tilt_deg <= 60, "ground_max_tilt_deg",
+          "above 0, at most 60 degrees");
+  require(p.ground_tolerance_mm > 0, "ground_tolerance_mm", "above 0");
+  require(p.layer_bin_mm >= 5 && p.layer_bin_mm <= 1000, "layer_bin_mm", "5 to 1000 mm");
+  require(p.layer_min_share > 0 && p.layer_min_share <= 1, "layer_min_share", "above 0, at most 1");
+  require(p.layer_gap_mm >= p.layer_bin_mm, "layer_gap_mm", "at least layer_bin_mm");
+  require(p.max_row_depth_mm >= p.layer_bin_mm, "max_row_depth_mm", "at least layer_bin_mm");
+  require(p.min_gap_mm >= 10, "min_gap_mm", "at least 10 mm");
+  require(p.seam_half_window >= 0 && p.seam_half_window <= 15, "seam_half_window", "0 to 15 px");
+}
+
+CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoint> &points,
+                           const StereoGeometry &g, const CanopyParams &p, const cv::Mat &left,
+                           const cv::Mat &right, ChannelOrder order)
+{
+  validate(p);
+  if (!g.valid())
+    throw std::runtime_error("select_canopy: the stereo geometry is not valid");
+  if (vegetation.type() != CV_8U || vegetation.size() != g.view_size)
+    throw std::runtime_error("select_canopy: the vegetation mask must be CV_8U of the view size");
+  const bool seam = p.seam_half_window > 0 && !left.empty() && !right.empty();
+  if (seam && (left.size() != g.view_size || right.size() != g.view_size))
+    throw std::runtime_error("select_canopy: the views must have the geometry's view size");
+
+  CanopyResult r;
+  const cv::Size size = g.view_size;
+  r.classes.assign(points.size(), PointClass::Unknown);
+  r.silhouette.mask = cv::Mat::zeros(size, CV_8U);
+
+  // The vegetation points: valid, on the view, on (or next to) the mask.
+  std::vector<int> use;
+  use.reserve(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const PixelPoint &q = points[i];
+    if (!q.p.valid || !(q.p.z > 0) || !std::isfinite(q.px.x) || !std::isfinite(q.px.y))
+      continue;
+    const int x = int(std::lround(q.px.x)), y = int(std::lround(q.px.y));
+    if (x < 0 || y < 0 || x >= size.width || y >= size.height || !vegetation.at<uchar>(y, x))
+      continue;
+    use.push_back(int(i));
+  }
+  if (use.empty())
+    return r;
+  auto P = [&](int i) {
+    const Point3 &q = points[std::size_t(i)].p;
+    return cv::Point3d(q.x, q.y, q.z);
+  };
+
+  // 1. The ground.
+  const cv::Vec3d up_cam(0, -std::cos(p.camera_pitch_deg * kDeg), -std::sin(p.camera_pitch_deg * kDeg));
+  const cv::Vec3d up = g.R1 * up_cam;
+  if (p.ground == GroundModel::Rig) {
+    r.ground.found = true;
+    r.ground.normal = up;
+    r.ground.d = p.camera_height_mm;
+  } else if (p.ground == GroundModel::Fit) {
+    std::vector<cv::Point3d> X;
+    X.reserve(use.size());
+    for (int i : use)
+      X.push_back(P(i));
+    r.ground = fit_ground(X, p, cv::Vec3d(0, -1, 0));
+  }
+  std::vector<int> rest;
+  rest.reserve(use.size());
+  for (int i : use) {
+    if (r.ground.found) {
+      const double h = r.ground.height_of(P(i));
+      if (h < p.min_height_mm) {
+        r.classes[std::size_t(i)] = PointClass::Ground;
+        continue;
+      }
+      if (p.max_height_mm > 0 && h > p.max_height_mm) {
+        r.classes[std::size_t(i)] = PointClass::High;
+        continue;
+      }
+    }
+    rest.push_back(i);
+  }
+  if (rest.empty())
+    return r;
+  const int cell = std::max(8, size.width / 81);
+  std::vector<double> w = area_weights(points, rest, size, cell);
+
+  // 2. The near row in depth.
+  if (p.near_mm > 0 || p.far_mm > 0) {
+    r.zone_from_data = false;
+    r.near_mm = p.near_mm;
+    r.far_mm = p.far_mm > 0 ? p.far_mm : std::numeric_limits<double>::infinity();
+  } else {
+    double zmin = std::numeric_limits<double>::infinity(), zmax = 0, total = 0;
+    for (std::size_t k = 0; k < rest.size(); ++k) {
+      zmin = std::min(zmin, P(rest[k]).z);
+      zmax = std::max(zmax, P(rest[k]).z);
+      total += w[k];
+    }
+    const int nb = int((zmax - zmin) / p.layer_bin_mm) + 1;
+    std::vector<double> hist(std::size_t(nb), 0.0);
+    for (std::size_t k = 0; k < rest.size(); ++k)
+      hist[std::size_t((P(rest[k]).z - zmin) / p.layer_bin_mm)] += w[k];
+    const auto runs = occupied_runs(hist, 0.002 * total,
+                                    std::max(1, int(std::lround(p.layer_gap_mm / p.layer_bin_mm))));
+    int chosen = -1;
+    double chosen_w = -1, best_w = -1;
+    int best = -1;
+    for (std::size_t k = 0; k < runs.size(); ++k) {
+      // A run longer than a row is cut at max_row_depth_mm behind its front.
+      const int last = std::min(runs[k][1], runs[k][0] + int(p.max_row_depth_mm / p.layer_bin_mm));
+      double sum = 0;
+      for (int b = runs[k][0]; b <= last; ++b)
+        sum += hist[std::size_t(b)];
+      if (sum > best_w) {
+        best_w = sum;
+        best = int(k);
+      }
+      if (chosen < 0 && sum >= p.layer_min_share * total) {
+        chosen = int(k);
+        chosen_w = sum;
+      }
+    }
+    (void)chosen_w;
+    if (chosen < 0)
+      chosen = best;
+    if (chosen < 0)
+      return r;
+    const int last = std::min(runs[std::size_t(chosen)][1],
+                              runs[std::size_t(chosen)][0] + int(p.max_row_depth_mm / p.layer_bin_mm));
+    r.near_mm = zmin + (runs[std::size_t(chosen)][0] - 1) * p.layer_bin_mm;
+    r.far_mm = zmin + (last + 2) * p.layer_bin_mm;
+  }
+  std::vector<int> zone;
+  std::vector<double> zw;
+  for (std::size_t k = 0; k < rest.size(); ++k) {
+    const double z = P(rest[k]).z;
+    if (z < r.near_mm)
+      r.classes[std::size_t(rest[k])] = PointClass::Front;
+    else if (z > r.far_mm)
+      r.classes[std::size_t(rest[k])] = PointClass::Behind;
+    else {
+      zone.push_back(rest[k]);
+      zw.push_back(w[k]);
+    }
+  }
+  if (zone.empty())
+    return r;
+
+  // 3. Along the row: segments of x separated by empty stretches.
+  {
+    const double bin = std::max(5.0, 0.25 * p.min_gap_mm);
+    double xmin = std::numeric_limits<double>::infinity(), xmax = -xmin;
+    for (int i : zone) {
+      xmin = std::min(xmin, P(i).x);
+      xmax = std::max(xmax, P(i).x);
+    }
+    const int nb = int((xmax - xmin) / bin) + 1;
+    std::vector<double> hist(std::size_t(nb), 0.0);
+    std::vector<int> count(std::size_t(nb), 0);
+    double total = 0;
+    for (std::size_t k = 0; k < zone.size(); ++k) {
+      const std::size_t b = std::size_t((P(zone[k]).x - xmin) / bin);
+      hist[b] += zw[k];
+      ++count[b];
+      total += zw[k];
+    }
+    // Occupied: at least two points, and a weight that is not a stray point's.
+    std::vector<double> occ(hist.size(), 0.0);
+    for (std::size_t b = 0; b < hist.size(); ++b)
+      occ[b] = count[b] >= 2 ? hist[b] : 0.0;
+    const auto runs = occupied_runs(occ, 0.001 * total,
+                                    std::max(1, int(std::ceil(p.min_gap_mm / bin))));
+    r.n_segments = int(runs.size());
+    // Points in no run (stray bins) go to the nearest run.
+    auto run_of = [&](double x) {
+      const double b = (x - xmin) / bin;
+      int bestk = 0;
+      double bestd = std::numeric_limits<double>::infinity();
+      for (std::size_t k = 0; k < runs.size(); ++k) {
+        const double d = b < runs[k][0] ? runs[k][0] - b : (b > runs[k][1] + 1 ? b - runs[k][1] - 1 : 0);
+        if (d < bestd) {
+          bestd = d;
+          bestk = int(k);
+        }
+      }
+      return bestk;
+    };
+    int front = 0;
+    if (p.mode == CanopyMode::Tree && !runs.empty()) {
+      // The tree in front: the run holding the optical axis (x = 0 at the row's depth), or the
+      // one nearest to it.
+      front = run_of(0.0);
+    }
+    r.left_mm = std::numeric_limits<double>::infinity();
+    r.right_mm = -r.left_mm;
+    for (int i : zone) {
+      const bool in = runs.empty() || p.mode == CanopyMode::Row || run_of(P(i).x) == front;
+      r.classes[std::size_t(i)] = in ? PointClass::Canopy : PointClass::Neighbour;
+      if (in) {
+        ++r.n_canopy_points;
+        r.left_mm = std::min(r.left_mm, P(i).x);
+        r.right_mm = std::max(r.right_mm, P(i).x);
+      }
+    }
+  }
+  if (r.n_canopy_points == 0) {
+    r.left_mm = r.right_mm = 0;
+    return r;
+  }
+
+  // 4. The mask, region by region of the vegetation mask.
+  cv::Mat labels;
+  const int n_regions = cv::connectedComponents(vegetation, labels, 8, CV_32S);
+  std::vector<int> n_in(std::size_t(n_regions), 0), n_out(std::size_t(n_regions), 0);
+  for (int i : use) {
+    const cv::Point px(int(std::lround(points[std::size_t(i)].px.x)),
+                       int(std::lround(points[std::size_t(i)].px.y)));
+    const int l = labels.at<int>(px);
+    if (r.classes[std::size_t(i)] == PointClass::Canopy)
+      ++n_in[std::size_t(l)];
+    else if (other_class(r.classes[std::size_t(i)]))
+      ++n_out[std::size_t(l)];
+  }
+  // 0: not canopy, 1: the whole region, 2: split by the samples.
+  std::vector<uchar> kind(std::size_t(n_regions), 0);
+  cv::Rect mixed_box;
+  for (int l = 1; l < n_regions; ++l)
+    kind[std::size_t(l)] = n_in[std::size_t(l)] == 0 ? 0 : (n_out[std::size_t(l)] == 0 ? 1 : 2);
+  cv::Mat &mask = r.silhouette.mask;
+  for (int y = 0; y < size.height; ++y) {
+    const int *lab = labels.ptr<int>(y);
+    uchar *m = mask.ptr<uchar>(y);
+    for (int x = 0; x < size.width; ++x) {
+      const uchar k = kind[std::size_t(lab[x])];
+      if (k == 1)
+        m[x] = 255;
+      else if (k == 2) {
+        mixed_box |= cv::Rect(x, y, 1, 1);
+      }
+    }
+  }
+  if (!mixed_box.empty()) {
+    // Each pixel of a mixed region takes the class of the nearest sample: two distance
+    // transforms, one to the canopy's samples and one to the others', with the sample each
+    // distance comes from.
+    const cv::Rect box = mixed_box;
+    cv::Mat free_in(box.size(), CV_8U, cv::Scalar(255)), free_out(box.size(), CV_8U, cv::Scalar(255));
+    std::vector<cv::Point> at;
+    std::vector<float> disp;
+    std::vector<uchar> is_in;
+    for (int i : use) {
+      const PointClass c = r.classes[std::size_t(i)];
+      if (c == PointClass::Unknown)
+        continue;
+      const cv::Point px(int(std::lround(points[std::size_t(i)].px.x)) - box.x,
+                         int(std::lround(points[std::size_t(i)].px.y)) - box.y);
+      if (!cv::Rect(cv::Point(0, 0), box.size()).contains(px))
+        continue;
+      (c == PointClass::Canopy ? free_in : free_out).at<uchar>(px) = 0;
+    }
+    cv::Mat d_in, d_out, l_in, l_out;
+    cv::distanceTransform(free_in, d_in, l_in, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+    cv::distanceTransform(free_out, d_out, l_out, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+    // The disparity of each label's sample (for the seam test).
+    std::vector<float> disp_in, disp_out;
+    if (seam) {
+      double lmax_in = 0, lmax_out = 0;
+      cv::minMaxLoc(l_in, nullptr, &lmax_in);
+      cv::minMaxLoc(l_out, nullptr, &lmax_out);
+      disp_in.assign(std::size_t(lmax_in) + 1, -1.0f);
+      disp_out.assign(std::size_t(lmax_out) + 1, -1.0f);
+      for (int i : use) {
+        const PointClass c = r.classes[std::size_t(i)];
+        if (c == PointClass::Unknown)
+          continue;
+        const cv::Point px(int(std::lround(points[std::size_t(i)].px.x)) - box.x,
+                           int(std::lround(points[std::size_t(i)].px.y)) - box.y);
+        if (!cv::Rect(cv::Point(0, 0), box.size()).contains(px))
+          continue;
+        const float d = float(g.fx * g.baseline_mm / points[std::size_t(i)].p.z + g.doffs());
+        if (c == PointClass::Canopy)
+          disp_in[std::size_t(l_in.at<int>(px))] = d;
+        else
+          disp_out[std::size_t(l_out.at<int>(px))] = d;
+      }
+    }
+    // The seam: pixels whose nearest samples of both kinds are about equally near (within
+    // the local sample spacing) are tested by photo-consistency.
+    cv::Mat L, R;
+    int rx0 = 0;
+    const int h = p.seam_half_window;
+    if (seam) {
+      L = to_gray8(left(box), order);
+      // Right-view columns the disparities can reach.
+      float dmax = 0;
+      for (float d : disp_in)
+        dmax = std::max(dmax, d);
+      for (float d : disp_out)
+        dmax = std::max(dmax, d);
+      rx0 = std::max(0, box.x - int(std::ceil(dmax)) - h - 3);
+      const int rx1 = std::min(size.width, box.x + box.width + h + 3);
+      R = to_gray8(right(cv::Rect(rx0, box.y, rx1 - rx0, box.height)), order);
+    }
+    detail::Patch patch;
+    // Best ZNCC of the pixel at (x, y) (box coordinates) with the right view at disparity d
+    // (whole pixels within +-2 of it), over shiftable windows: the patch centred on the pixel
+    // and the two with the pixel at their top or bottom edge, so that a pixel below or above a
+    // depth edge is judged by a window on its own side. (Windows shifted sideways would give
+    // the background beside a near surface's left edge, which the right camera does not see,
+    // the near surface's match.)
+    auto best_score = [&](int x, int y, float d) {
+      double best = -2;
+      static const int shifts[3][2] = {{0, 0}, {0, -1}, {0, 1}};
+      for (const auto &sh : shifts) {
+        const int px = x + sh[0] * h, py = y + sh[1] * h;
+        if (px - h < 0 || px + h >= L.cols || py - h < 0 || py + h >= L.rows ||
+            !detail::centred_patch(L, px, py, h, patch))
+          continue;
+        const int xr_c = int(std::lround(px + box.x - d)) - rx0;
+        for (int dx = -2; dx <= 2; ++dx) {
+          const int xr = xr_c + dx;
+          if (xr - h < 0 || xr + h >= R.cols)
+            continue;
+          best = std::max(best, detail::zncc(patch, R, xr, py));
+        }
+      }
+      return best;
+    };
+    for (int y = 0; y < box.height; ++y) {
+      const int *lab = labels.ptr<int>(y + box.y);
+      const float *di = d_in.ptr<float>(y), *dout = d_out.ptr<float>(y);
+      const int *li = l_in.ptr<int>(y), *lo = l_out.ptr<int>(y);
+      uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
+      for (int x = 0; x < box.width; ++x) {
+        if (kind[std::size_t(lab[x + box.x])] != 2)
+          continue;
+        bool in = di[x] <= dout[x];
+        if (seam && std::abs(di[x] - dout[x]) < std::max(4.0f, 0.5f * (di[x] + dout[x]))) {
+          const float dv_in = disp_in[std::size_t(li[x])], dv_out = disp_out[std::size_t(lo[x])];
+          if (dv_in > 0 && dv_out > 0 && std::abs(dv_in - dv_out) > 3.0f) {
+            // A nearer surface is never hidden by a farther one: when the nearer hypothesis
+            // finds no match, the pixel belongs to the farther one (seen by the left camera
+            // only, beside the nearer surface's left edge) or is not known; the farther wins.
+            const double s_in = best_score(x, y, dv_in), s_out = best_score(x, y, dv_out);
+            const bool in_near = dv_in > dv_out;
+            const double s_near = in_near ? s_in : s_out, s_far = in_near ? s_out : s_in;
+            const bool near_wins = s_near >= kSeamMinScore && s_near >= s_far;
+            in = near_wins == in_near;
+            ++r.n_seam_pixels;
+          }
+        }
+        if (in)
+          m[x] = 255;
+      }
+    }
+    // Pieces of the canopy that hold none of its samples (islands the split left behind) go.
+    cv::Mat cl;
+    const int nc = cv::connectedComponents(mask(box), cl, 8, CV_32S);
+    std::vector<uchar> keep(std::size_t(nc), 0);
+    for (int i : use)
+      if (r.classes[std::size_t(i)] == PointClass::Canopy) {
+        const cv::Point px(int(std::lround(points[std::size_t(i)].px.x)) - box.x,
+                           int(std::lround(points[std::size_t(i)].px.y)) - box.y);
+        if (cv::Rect(cv::Point(0, 0), box.size()).contains(px))
+          keep[std::size_t(cl.at<int>(px))] = 1;
+      }
+    for (int y = 0; y < box.height; ++y) {
+      const int *c = cl.ptr<int>(y);
+      const int *lab = labels.ptr<int>(y + box.y);
+      uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
+      for (int x = 0; x < box.width; ++x)
+        if (m[x] && kind[std::size_t(lab[x + box.x])] == 2 && !keep[std::size_t(c[x])])
+          m[x] = 0;
+    }
+  }
+  r.present = describe_silhouette(r.silhouette, cv::Rect(cv::Point(0, 0), size), 1.0);
+  return r;
 }
 
 double depth_support(const cv::Mat &mask, const std::vector<cv::Point2f> &px, double radius_px)

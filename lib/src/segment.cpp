@@ -576,18 +576,26 @@ void VegetationSegmenter::run(const cv::Mat &view, Silhouette &out)
         cv::Rect(cv::Point(0, 0), view.size());
   if (p.unmix_edges) // boundary pixels are inside the box already (one block around the regions)
     unmix_edges(view, box, out.mask);
-  const cv::Moments mo = cv::moments(out.mask(box), true);
-  if (mo.m00 <= 0) {
+  if (!describe_silhouette(out, box, p.contour_epsilon * f)) {
     clear(out, threshold);
     return;
   }
+  out.threshold = threshold;
+  out.n_regions = n_kept;
+}
+
+bool describe_silhouette(Silhouette &out, const cv::Rect &box, double contour_epsilon)
+{
+  const cv::Moments mo = cv::moments(out.mask(box), true);
+  if (mo.m00 <= 0)
+    return false;
   std::vector<std::vector<cv::Point>> contours;
   cv::findContours(out.mask(box), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE, box.tl());
   double perimeter = 0, largest_area = -1;
   cv::Rect bbox;
   std::size_t largest = 0;
   for (std::size_t i = 0; i < contours.size(); ++i) {
-    perimeter += region_perimeter(contours[i], p.contour_epsilon * f);
+    perimeter += region_perimeter(contours[i], contour_epsilon);
     const cv::Rect b = cv::boundingRect(contours[i]);
     bbox = bbox.empty() ? b : (bbox | b);
     const double a = cv::contourArea(contours[i]);
@@ -598,13 +606,13 @@ void VegetationSegmenter::run(const cv::Mat &view, Silhouette &out)
   }
   out.contour = std::move(contours[largest]);
   out.present = true;
-  out.threshold = threshold;
   out.area_px = mo.m00;
   out.centroid = cv::Point2d(box.x + mo.m10 / mo.m00, box.y + mo.m01 / mo.m00);
   out.bbox = bbox;
   out.perimeter_px = perimeter;
   out.complexity = perimeter * perimeter / (4.0 * CV_PI * mo.m00);
-  out.n_regions = n_kept;
+  out.n_regions = int(contours.size());
+  return true;
 }
 
 Silhouette segment_vegetation(const cv::Mat &view, const SegmentParams &params)

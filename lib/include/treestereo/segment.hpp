@@ -149,6 +149,12 @@ private:
   std::vector<std::vector<cv::Point>> flip_; // unmix_edges: per stripe, pixels that change
 };
 
+// The figures of a silhouette from its mask: out.mask (CV_8U, 255 = canopy, nothing outside
+// `box`) gives area, centroid, outer contours (the largest kept), perimeter (each contour
+// simplified by contour_epsilon px, moved half a pixel outward), complexity, bbox and n_regions
+// (outer contours); present = true. Returns false, leaving `out` as it was, for an empty mask.
+bool describe_silhouette(Silhouette &out, const cv::Rect &box, double contour_epsilon);
+
 // One-shot convenience around VegetationSegmenter.
 Silhouette segment_vegetation(const cv::Mat &view, const SegmentParams &params = SegmentParams());
 

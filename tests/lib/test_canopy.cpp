@@ -1,0 +1,317 @@
+// select_canopy on constructed scenes ray-cast in both views of a rectified rig: spheres of
+// leaves (canopies), a green wall behind them, a green ground plane under them. Every surface is
+// "vegetation" to colour; the truth of which pixels are the canopy in front is exact.
+#include "treestereo/canopy.hpp"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+using namespace treestereo;
+
+namespace {
+
+struct Sphere {
+  cv::Vec3d c;
+  double r;
+};
+
+// A rectified rig, 640x480, fx 800 px, baseline 60 mm; the scene in the left camera's frame (mm).
+struct Scene {
+  std::vector<Sphere> spheres;
+  double wall_z = 0;     // 0: none
+  double ground_y = 0;   // 0: none (the plane y = ground_y, y down)
+  StereoGeometry g;
+  Scene()
+  {
+    g.view_size = cv::Size(640, 480);
+    g.fx = g.fy = 800;
+    g.cx[0] = g.cx[1] = 320;
+    g.cy = 240;
+    g.baseline_mm = 60;
+  }
+
+  // First hit along the ray from `o` through normalised (u, v): the object (0..n-1 sphere,
+  // -1 wall, -2 ground, -3 nothing) and the point.
+  int trace(const cv::Vec3d &o, double u, double v, cv::Vec3d &hit) const
+  {
+    const cv::Vec3d d(u, v, 1.0);
+    double best = std::numeric_limits<double>::infinity();
+    int what = -3;
+    for (std::size_t i = 0; i < spheres.size(); ++i) {
+      const cv::Vec3d oc = o - spheres[i].c;
+      const double b = oc.dot(d), a = d.dot(d), c = oc.dot(oc) - spheres[i].r * spheres[i].r;
+      const double disc = b * b - a * c;
+      if (disc < 0)
+        continue;
+      const double t = (-b - std::sqrt(disc)) / a;
+      if (t > 0 && t < best) {
+        best = t;
+        what = int(i);
+      }
+    }
+    if (wall_z > 0) {
+      const double t = (wall_z - o[2]) / d[2];
+      if (t > 0 && t < best) {
+        best = t;
+        what = -1;
+      }
+    }
+    if (ground_y > 0 && d[1] > 0) {
+      const double t = (ground_y - o[1]) / d[1];
+      if (t > 0 && t < best) {
+        best = t;
+        what = -2;
+      }
+    }
+    hit = o + best * d;
+    return what;
+  }
+
+  // A leafy texture as a function of the 3D point (both views see the same).
+  static double texture(const cv::Vec3d &p)
+  {
+    auto h = [](std::int64_t x, std::int64_t y, std::int64_t z) {
+      std::uint64_t k = std::uint64_t(x * 73856093LL ^ y * 19349663LL ^ z * 83492791LL);
+      k ^= k >> 33;
+      k *= 0xff51afd7ed558ccdULL;
+      k ^= k >> 33;
+      return double(k % 1000) / 1000.0;
+    };
+    const double s = 7.0; // mm cells, trilinear
+    const double fx = p[0] / s, fy = p[1] / s, fz = p[2] / s;
+    const std::int64_t x0 = std::int64_t(std::floor(fx)), y0 = std::int64_t(std::floor(fy)),
+                       z0 = std::int64_t(std::floor(fz));
+    const double ax = fx - x0, ay = fy - y0, az = fz - z0;
+    double v = 0;
+    for (int k = 0; k < 8; ++k) {
+      const int i = k & 1, j = (k >> 1) & 1, l = k >> 2;
+      v += (i ? ax : 1 - ax) * (j ? ay : 1 - ay) * (l ? az : 1 - az) * h(x0 + i, y0 + j, z0 + l);
+    }
+    return 30 + 190 * v;
+  }
+
+  // Left and right grey views, the left view's object map and 3D points.
+  void render(cv::Mat &left, cv::Mat &right, cv::Mat &objects, cv::Mat &points) const
+  {
+    const cv::Size s = g.view_size;
+    left.create(s, CV_8U);
+    right.create(s, CV_8U);
+    objects.create(s, CV_32S);
+    points.create(s, CV_64FC3);
+    for (int view = 0; view < 2; ++view) {
+      const cv::Vec3d o(view == 0 ? 0 : g.baseline_mm, 0, 0);
+      for (int y = 0; y < s.height; ++y)
+        for (int x = 0; x < s.width; ++x) {
+          cv::Vec3d hit;
+          const int what = trace(o, (x - g.cx[view]) / g.fx, (y - g.cy) / g.fy, hit);
+          const uchar v = what == -3 ? 250 : cv::saturate_cast<uchar>(texture(hit));
+          (view == 0 ? left : right).at<uchar>(y, x) = v;
+          if (view == 0) {
+            objects.at<int>(y, x) = what;
+            points.at<cv::Vec3d>(y, x) = hit;
+          }
+        }
+    }
+  }
+};
+
+// Grid samples of the left view (every `step` px) with their exact 3D points.
+std::vector<PixelPoint> grid_points(const cv::Mat &objects, const cv::Mat &points, int step)
+{
+  std::vector<PixelPoint> out;
+  for (int y = step / 2; y < objects.rows; y += step)
+    for (int x = step / 2; x < objects.cols; x += step) {
+      if (objects.at<int>(y, x) == -3)
+        continue;
+      const cv::Vec3d p = points.at<cv::Vec3d>(y, x);
+      PixelPoint q;
+      q.px = cv::Point2f(float(x), float(y));
+      q.p.x = float(p[0]);
+      q.p.y = float(p[1]);
+      q.p.z = float(p[2]);
+      out.push_back(q);
+    }
+  return out;
+}
+
+double iou(const cv::Mat &a, const cv::Mat &b)
+{
+  cv::Mat i, u;
+  cv::bitwise_and(a, b, i);
+  cv::bitwise_or(a, b, u);
+  return double(cv::countNonZero(i)) / std::max(1, cv::countNonZero(u));
+}
+
+cv::Mat object_mask(const cv::Mat &objects, int which)
+{
+  cv::Mat m;
+  cv::compare(objects, which, m, cv::CMP_EQ);
+  return m;
+}
+
+struct Rendered {
+  cv::Mat left, right, objects, points, vegetation;
+};
+
+Rendered render(const Scene &s)
+{
+  Rendered r;
+  s.render(r.left, r.right, r.objects, r.points);
+  cv::compare(r.objects, -3, r.vegetation, cv::CMP_NE); // everything but the sky is green
+  return r;
+}
+
+} // namespace
+
+TEST(Canopy, GreenWallTwoMetresBehind)
+{
+  Scene s;
+  s.spheres.push_back({cv::Vec3d(0, 0, 2000), 350});
+  s.wall_z = 4000;
+  const Rendered r = render(s);
+  const cv::Mat truth = object_mask(r.objects, 0);
+  const auto pts = grid_points(r.objects, r.points, 8);
+
+  // Colour alone: the whole view.
+  EXPECT_LT(iou(r.vegetation, truth), 0.5);
+
+  CanopyParams p;
+  const CanopyResult nearest = select_canopy(r.vegetation, pts, s.g, p); // no seam test
+  ASSERT_TRUE(nearest.present);
+  EXPECT_GT(iou(nearest.silhouette.mask, truth), 0.95);
+  EXPECT_LT(nearest.near_mm, 1650);
+  EXPECT_GT(nearest.far_mm, 2000);
+  EXPECT_LT(nearest.far_mm, 4000);
+  EXPECT_TRUE(nearest.zone_from_data);
+
+  const CanopyResult seam = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
+  ASSERT_TRUE(seam.present);
+  EXPECT_GT(seam.n_seam_pixels, 0u);
+  EXPECT_GT(iou(seam.silhouette.mask, truth), 0.98);
+  EXPECT_GT(iou(seam.silhouette.mask, truth), iou(nearest.silhouette.mask, truth));
+  // The silhouette's box within 2 px of the truth's.
+  const cv::Rect tb = cv::boundingRect(truth), sb = seam.silhouette.bbox;
+  EXPECT_LE(std::abs(tb.x - sb.x), 2);
+  EXPECT_LE(std::abs(tb.br().x - sb.br().x), 2);
+  EXPECT_LE(std::abs(tb.y - sb.y), 2);
+  EXPECT_LE(std::abs(tb.br().y - sb.br().y), 2);
+  // Every point is classified: the sphere's as canopy, the wall's as behind.
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const int obj = r.objects.at<int>(cv::Point(pts[i].px));
+    EXPECT_EQ(seam.classes[i], obj == 0 ? PointClass::Canopy : PointClass::Behind) << i;
+  }
+
+  // The user's spray zone instead of the data's.
+  p.near_mm = 1000;
+  p.far_mm = 3000;
+  const CanopyResult zone = select_canopy(r.vegetation, pts, s.g, p);
+  EXPECT_FALSE(zone.zone_from_data);
+  EXPECT_GT(iou(zone.silhouette.mask, truth), 0.95);
+  p.near_mm = 2500; // a zone with nothing in it: no canopy, said so
+  p.far_mm = 3500;
+  EXPECT_FALSE(select_canopy(r.vegetation, pts, s.g, p).present);
+}
+
+TEST(Canopy, StandingOnAGreenGroundPlane)
+{
+  Scene s;
+  // Camera 0.7 m above the grass, which is in view from 2.3 m on; a crown of 0.6 m at 2.4 m
+  // whose bottom is 0.4 m above the grass.
+  s.ground_y = 700;
+  s.spheres.push_back({cv::Vec3d(0, 0, 2400), 300});
+  const Rendered r = render(s);
+  const cv::Mat truth = object_mask(r.objects, 0);
+  const auto pts = grid_points(r.objects, r.points, 8);
+  ASSERT_GT(cv::countNonZero(object_mask(r.objects, -2)), 10000); // the grass is in view
+
+  CanopyParams p;
+  const CanopyResult c = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
+  ASSERT_TRUE(c.present);
+  ASSERT_TRUE(c.ground.found);
+  EXPECT_NEAR(c.ground.normal[1], -1.0, 1e-3);
+  EXPECT_NEAR(c.ground.d, 700, 5); // height of the camera above the plane
+  EXPECT_GT(iou(c.silhouette.mask, truth), 0.97);
+  std::size_t grass = 0, grass_as_ground = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    if (r.objects.at<int>(cv::Point(pts[i].px)) == -2) {
+      ++grass;
+      grass_as_ground += c.classes[i] == PointClass::Ground || c.classes[i] == PointClass::Behind;
+    }
+  EXPECT_EQ(grass_as_ground, grass);
+
+  // The rig's height instead of a fit gives the same.
+  p.ground = GroundModel::Rig;
+  p.camera_height_mm = 700;
+  const CanopyResult rig = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
+  EXPECT_GT(iou(rig.silhouette.mask, truth), 0.97);
+
+  // Without the ground the grass at the crown's depth is taken for canopy.
+  p.ground = GroundModel::Off;
+  const CanopyResult off = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
+  EXPECT_LT(iou(off.silhouette.mask, truth), 0.9);
+}
+
+TEST(Canopy, TwoCanopiesThirtyCentimetresApart)
+{
+  Scene s;
+  s.spheres.push_back({cv::Vec3d(-100, 0, 2200), 330});
+  s.spheres.push_back({cv::Vec3d(-100 + 330 + 300 + 330, 0, 2200), 330}); // gap 0.3 m
+  s.spheres.push_back({cv::Vec3d(-100 - 330 - 300 - 330, 0, 2200), 330});
+  s.wall_z = 5500;
+  const Rendered r = render(s);
+  const auto pts = grid_points(r.objects, r.points, 8);
+  const cv::Mat truth = object_mask(r.objects, 0);
+  cv::Mat row = truth | object_mask(r.objects, 1) | object_mask(r.objects, 2);
+
+  CanopyParams p;
+  const CanopyResult tree = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
+  ASSERT_TRUE(tree.present);
+  EXPECT_EQ(tree.n_segments, 3);
+  EXPECT_GT(iou(tree.silhouette.mask, truth), 0.98);
+  EXPECT_NEAR(tree.left_mm, -100 - 330, 25);
+  EXPECT_NEAR(tree.right_mm, -100 + 330, 25);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const int obj = r.objects.at<int>(cv::Point(pts[i].px));
+    if (obj == 1 || obj == 2) {
+      EXPECT_EQ(tree.classes[i], PointClass::Neighbour);
+    }
+  }
+
+  p.mode = CanopyMode::Row;
+  const CanopyResult wall = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
+  ASSERT_TRUE(wall.present);
+  EXPECT_GT(iou(wall.silhouette.mask, row), 0.975);
+}
+
+TEST(Canopy, NothingToDecide)
+{
+  Scene s;
+  const StereoGeometry g = s.g;
+  const cv::Mat veg(g.view_size, CV_8U, cv::Scalar(0));
+  const CanopyResult r = select_canopy(veg, {}, g, CanopyParams());
+  EXPECT_FALSE(r.present);
+  EXPECT_EQ(cv::countNonZero(r.silhouette.mask), 0);
+  CanopyParams bad;
+  bad.far_mm = 100;
+  bad.near_mm = 200;
+  EXPECT_THROW(select_canopy(veg, {}, g, bad), std::runtime_error);
+  EXPECT_THROW(select_canopy(cv::Mat(10, 10, CV_8U), {}, g, CanopyParams()), std::runtime_error);
+}
+
+TEST(Canopy, DepthSupport)
+{
+  cv::Mat mask(100, 100, CV_8U, cv::Scalar(0));
+  mask(cv::Rect(0, 0, 100, 50)).setTo(255);
+  EXPECT_EQ(depth_support(mask, {}, 5), 0.0);
+  std::vector<cv::Point2f> px;
+  for (int y = 0; y < 50; y += 4)
+    for (int x = 0; x < 50; x += 4)
+      px.emplace_back(float(x), float(y));
+  EXPECT_NEAR(depth_support(mask, px, 3), 0.5, 0.03);
+  EXPECT_EQ(depth_support(cv::Mat(10, 10, CV_8U, cv::Scalar(0)), px, 3), 0.0);
+}
