@@ -466,6 +466,74 @@ gst_tree_stereo_points_meta_set_depth_map (GstTreeStereoPointsMeta * meta, GstBu
 }
 
 /* ---------------------------------------------------------------------------------------------
+ * The 3D canopy
+ * --------------------------------------------------------------------------------------------- */
+
+static gboolean
+canopy_init (GstTreeStereoCanopyMeta * meta, gpointer params, GstBuffer * buffer)
+{
+  memset ((guint8 *) meta + sizeof (GstMeta), 0, sizeof (*meta) - sizeof (GstMeta));
+  return TRUE;
+}
+
+static void
+canopy_free (GstTreeStereoCanopyMeta * meta, GstBuffer * buffer)
+{
+  gst_tree_stereo_vegetation_view_clear (&meta->view);
+}
+
+static gboolean
+canopy_transform (GstBuffer * dest, GstMeta * meta, GstBuffer * buffer, GQuark type,
+    gpointer data)
+{
+  GstTreeStereoCanopyMeta *src = (GstTreeStereoCanopyMeta *) meta, *dmeta;
+  gdouble sx = 1.0, sy = 1.0;
+  gboolean scale = FALSE;
+
+  if (!GST_META_TRANSFORM_IS_COPY (type) && !(scale = scale_factors (type, data, &sx, &sy)))
+    return FALSE;
+  dmeta = gst_buffer_add_tree_stereo_canopy_meta (dest, src->mode);
+  if (!dmeta)
+    return FALSE;
+  /* the figures after the view (metres, counts) do not depend on the picture's size */
+  dmeta->near_m = src->near_m;
+  dmeta->far_m = src->far_m;
+  dmeta->zone_from_data = src->zone_from_data;
+  dmeta->ground_found = src->ground_found;
+  memcpy (dmeta->ground_normal, src->ground_normal, sizeof (src->ground_normal));
+  dmeta->ground_d_m = src->ground_d_m;
+  dmeta->n_segments = src->n_segments;
+  dmeta->left_m = src->left_m;
+  dmeta->right_m = src->right_m;
+  dmeta->n_points = src->n_points;
+  dmeta->n_canopy_points = src->n_canopy_points;
+  dmeta->n_seam_pixels = src->n_seam_pixels;
+  gst_tree_stereo_vegetation_view_copy (&dmeta->view, &src->view);
+  if (scale)
+    vegetation_view_scale (&dmeta->view, sx, sy);
+  return TRUE;
+}
+
+DEFINE_API_TYPE (gst_tree_stereo_canopy_meta_api_get_type, "GstTreeStereoCanopyMetaAPI",
+    pixel_tags);
+DEFINE_META_INFO (gst_tree_stereo_canopy_meta_get_info,
+    gst_tree_stereo_canopy_meta_api_get_type, "GstTreeStereoCanopyMeta",
+    GstTreeStereoCanopyMeta, canopy_init, canopy_free, canopy_transform);
+
+GstTreeStereoCanopyMeta *
+gst_buffer_add_tree_stereo_canopy_meta (GstBuffer * buffer, GstTreeStereoCanopyMode mode)
+{
+  GstTreeStereoCanopyMeta *meta;
+
+  g_return_val_if_fail (GST_IS_BUFFER (buffer), NULL);
+  meta = (GstTreeStereoCanopyMeta *) gst_buffer_add_meta (buffer,
+      GST_TREE_STEREO_CANOPY_META_INFO, NULL);
+  if (meta)
+    meta->mode = mode;
+  return meta;
+}
+
+/* ---------------------------------------------------------------------------------------------
  * Tree metrics
  * --------------------------------------------------------------------------------------------- */
 
@@ -612,6 +680,7 @@ gst_buffer_add_tree_stereo_truth_meta (GstBuffer * buffer, const GstTreeStereoTr
 
 static const gchar *index_names[] = { "exg", "exg-exr", "exg-norm", "exg-exr-norm" };
 static const gchar *method_names[] = { "euclidean", "cosine-norm" };
+static const gchar *canopy_mode_names[] = { "colour", "tree", "row" };
 
 const gchar *
 gst_tree_stereo_vegetation_index_to_string (GstTreeStereoVegetationIndex index)
@@ -650,6 +719,42 @@ gst_tree_stereo_match_method_from_string (const gchar * s, GstTreeStereoMatchMet
     }
   }
   return FALSE;
+}
+
+const gchar *
+gst_tree_stereo_canopy_mode_to_string (GstTreeStereoCanopyMode mode)
+{
+  return ((guint) mode < G_N_ELEMENTS (canopy_mode_names)) ? canopy_mode_names[mode] : NULL;
+}
+
+gboolean
+gst_tree_stereo_canopy_mode_from_string (const gchar * s, GstTreeStereoCanopyMode * mode)
+{
+  guint i;
+  for (i = 0; s && i < G_N_ELEMENTS (canopy_mode_names); i++) {
+    if (g_strcmp0 (s, canopy_mode_names[i]) == 0) {
+      *mode = (GstTreeStereoCanopyMode) i;
+      return TRUE;
+    }
+  }
+  return FALSE;
+}
+
+GType
+gst_tree_stereo_canopy_mode_get_type (void)
+{
+  static GType type = 0;
+  static const GEnumValue values[] = {
+    {GST_TREE_STEREO_CANOPY_COLOUR, "The colour silhouette (no 3D canopy upstream)", "colour"},
+    {GST_TREE_STEREO_CANOPY_TREE, "The tree in front, decided in 3D", "tree"},
+    {GST_TREE_STEREO_CANOPY_ROW, "The near row's vegetation, decided in 3D", "row"},
+    {0, NULL, NULL},
+  };
+  if (g_once_init_enter (&type)) {
+    GType t = g_enum_register_static ("GstTreeStereoCanopyMode", values);
+    g_once_init_leave (&type, t);
+  }
+  return type;
 }
 
 /* ---------------------------------------------------------------------------------------------
@@ -922,9 +1027,13 @@ set_metrics (GstStructure * s, const GstTreeStereoMetrics * m, const gchar * p)
   gchar f[64];
   GValue bands = G_VALUE_INIT;
   guint i;
+  const gchar *mode;
 
+  mode = gst_tree_stereo_canopy_mode_to_string ((GstTreeStereoCanopyMode) m->canopy_mode);
   gst_structure_set (s, mfield (f, sizeof f, p, "tree-present"), G_TYPE_BOOLEAN,
       m->tree_present, NULL);
+  gst_structure_set (s, mfield (f, sizeof f, p, "canopy-mode"), G_TYPE_STRING,
+      mode ? mode : "unknown", NULL);
   if (!m->tree_present)
     return;
   gst_structure_set (s, mfield (f, sizeof f, p, "distance"), G_TYPE_DOUBLE, m->distance_m, NULL);
@@ -954,6 +1063,8 @@ set_metrics (GstStructure * s, const GstTreeStereoMetrics * m, const gchar * p)
       (m->clipped & GST_TREE_STEREO_CLIPPED_RIGHT) != 0, NULL);
   gst_structure_set (s, mfield (f, sizeof f, p, "points"), G_TYPE_UINT, m->n_points, NULL);
   gst_structure_set (s, mfield (f, sizeof f, p, "matches"), G_TYPE_UINT, m->n_matches, NULL);
+  gst_structure_set (s, mfield (f, sizeof f, p, "confidence"), G_TYPE_DOUBLE, m->confidence,
+      NULL);
 
   g_value_init (&bands, GST_TYPE_ARRAY);
   for (i = 0; i < m->n_bands; i++) {
@@ -966,7 +1077,8 @@ set_metrics (GstStructure * s, const GstTreeStereoMetrics * m, const gchar * p)
         "left", G_TYPE_DOUBLE, b->left_m,
         "right", G_TYPE_DOUBLE, b->right_m,
         "width", G_TYPE_DOUBLE, b->width_m,
-        "depth", G_TYPE_DOUBLE, b->depth_m, NULL);
+        "depth", G_TYPE_DOUBLE, b->depth_m,
+        "fill", G_TYPE_DOUBLE, b->fill, NULL);
     g_value_init (&v, GST_TYPE_STRUCTURE);
     gst_value_set_structure (&v, bs);
     gst_structure_free (bs);
@@ -982,9 +1094,15 @@ get_metrics (const GstStructure * s, GstTreeStereoMetrics * m, const gchar * p)
   const GValue *bands;
   guint i, n;
 
+  GstTreeStereoCanopyMode mode;
+
   gst_tree_stereo_metrics_clear (m);
   if (!gst_structure_get_boolean (s, mfield (f[0], 64, p, "tree-present"), &m->tree_present))
     return FALSE;
+  if (!gst_tree_stereo_canopy_mode_from_string (gst_structure_get_string (s, mfield (f[0], 64, p,
+                  "canopy-mode")), &mode))
+    return FALSE;
+  m->canopy_mode = mode;
   if (!m->tree_present)
     return TRUE;
   if (!gst_structure_get (s,
@@ -1002,7 +1120,8 @@ get_metrics (const GstStructure * s, GstTreeStereoMetrics * m, const gchar * p)
     return FALSE;
   if (!gst_structure_get (s,
           mfield (f[0], 64, p, "points"), G_TYPE_UINT, &m->n_points,
-          mfield (f[1], 64, p, "matches"), G_TYPE_UINT, &m->n_matches, NULL))
+          mfield (f[1], 64, p, "matches"), G_TYPE_UINT, &m->n_matches,
+          mfield (f[2], 64, p, "confidence"), G_TYPE_DOUBLE, &m->confidence, NULL))
     return FALSE;
   bands = gst_structure_get_value (s, mfield (f[0], 64, p, "bands"));
   if (!bands || !GST_VALUE_HOLDS_ARRAY (bands))
@@ -1019,7 +1138,8 @@ get_metrics (const GstStructure * s, GstTreeStereoMetrics * m, const gchar * p)
     if (!gst_structure_get (bs, "present", G_TYPE_BOOLEAN, &b->present,
             "top", G_TYPE_DOUBLE, &b->top_m, "bottom", G_TYPE_DOUBLE, &b->bottom_m,
             "left", G_TYPE_DOUBLE, &b->left_m, "right", G_TYPE_DOUBLE, &b->right_m,
-            "width", G_TYPE_DOUBLE, &b->width_m, "depth", G_TYPE_DOUBLE, &b->depth_m, NULL))
+            "width", G_TYPE_DOUBLE, &b->width_m, "depth", G_TYPE_DOUBLE, &b->depth_m,
+            "fill", G_TYPE_DOUBLE, &b->fill, NULL))
       return FALSE;
   }
   return TRUE;
@@ -1052,4 +1172,41 @@ gst_tree_stereo_metrics_message_parse (const GstStructure * s, GstTreeStereoMetr
   if (smoothed && !get_metrics (s, smoothed, "smoothed-"))
     return FALSE;
   return TRUE;
+}
+
+void
+gst_tree_stereo_canopy_message_add (GstStructure * s, const GstTreeStereoCanopyMeta * meta)
+{
+  const gchar *mode;
+
+  g_return_if_fail (s != NULL && meta != NULL);
+  mode = gst_tree_stereo_canopy_mode_to_string (meta->mode);
+  gst_structure_set (s,
+      "canopy-present", G_TYPE_BOOLEAN, meta->view.present,
+      "canopy-mode", G_TYPE_STRING, mode ? mode : "unknown",
+      "canopy-near", G_TYPE_DOUBLE, meta->near_m,
+      "canopy-far", G_TYPE_DOUBLE, meta->far_m,
+      "ground-found", G_TYPE_BOOLEAN, meta->ground_found,
+      "segments", G_TYPE_UINT, meta->n_segments,
+      "canopy-points", G_TYPE_UINT, meta->n_canopy_points, NULL);
+}
+
+gboolean
+gst_tree_stereo_canopy_message_parse (const GstStructure * s, GstTreeStereoCanopyMeta * meta)
+{
+  GstTreeStereoCanopyMode mode;
+
+  g_return_val_if_fail (s != NULL && meta != NULL, FALSE);
+  if (!gst_tree_stereo_canopy_mode_from_string (gst_structure_get_string (s, "canopy-mode"),
+          &mode))
+    return FALSE;
+  gst_tree_stereo_vegetation_view_clear (&meta->view);
+  meta->mode = mode;
+  return gst_structure_get (s,
+      "canopy-present", G_TYPE_BOOLEAN, &meta->view.present,
+      "canopy-near", G_TYPE_DOUBLE, &meta->near_m,
+      "canopy-far", G_TYPE_DOUBLE, &meta->far_m,
+      "ground-found", G_TYPE_BOOLEAN, &meta->ground_found,
+      "segments", G_TYPE_UINT, &meta->n_segments,
+      "canopy-points", G_TYPE_UINT, &meta->n_canopy_points, NULL);
 }

@@ -1,5 +1,6 @@
 #include "treestereo/metrics.hpp"
 
+#include "treestereo/canopy.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/imgproc.hpp>
@@ -26,6 +27,9 @@ void check_input(const Silhouette &s, const StereoGeometry &g, const MetricsPara
     throw std::runtime_error("tree metrics: the silhouette mask must be CV_8U of the view size " +
                              std::to_string(g.view_size.width) + "x" +
                              std::to_string(g.view_size.height));
+  if (!(p.support_radius >= 0.0) || !(p.support_radius <= 1.0))
+    throw std::runtime_error("tree metrics: the support radius must be in [0, 1] of the view's "
+                             "width, got " + std::to_string(p.support_radius));
   if (p.n_bands < 1 || p.min_band_points < 1 || !(p.tangent_fraction > 0.0) ||
       !(p.tangent_fraction <= 0.5) || p.tangent_min_points < 5 || !(p.near_percentile >= 0.0) ||
       !(p.near_percentile <= 50.0) || !(p.edge_fraction > 0.0) || !(p.edge_fraction <= 0.5) ||
@@ -421,7 +425,7 @@ void fill_missing_band_depths(std::vector<Band> &bands, double canopy_near_m)
 
 std::vector<Band> compute_bands(const MetricsParams &p, const RowExtents &e,
                                 const std::vector<CanopyPoint> &pts, const Converter &c,
-                                const StereoGeometry &g, double canopy_near_m)
+                                const StereoGeometry &g, double canopy_near_m, const cv::Mat &mask)
 {
   const double fy = g.fy > 0 ? g.fy : g.fx;
   const int n = p.n_bands;
@@ -451,6 +455,9 @@ std::vector<Band> compute_bands(const MetricsParams &p, const RowExtents &e,
     b.left_m = c.x((xl - 0.5 - g.cx[LEFT]) / g.fx) * kMmToM;
     b.right_m = c.x((xr + 0.5 - g.cx[LEFT]) / g.fx) * kMmToM;
     b.width_m = b.right_m - b.left_m;
+    // the band's rows are those with ceil(y0) <= row < y1, as above
+    b.fill = band_fill(mask, std::max(e.bbox.y, int(std::ceil(y0))),
+                       std::min(e.bbox.br().y, int(std::ceil(y1))));
     if (int(b.n_points) >= p.min_band_points) {
       b.depth_m = percentile(band_z[std::size_t(i)], p.band_depth_percentile) * kMmToM;
       b.depth_measured = true;
@@ -562,8 +569,44 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
 
   std::vector<double> zb = z;
   const double near_m = percentile(zb, p.band_depth_percentile) * kMmToM;
-  m.bands = compute_bands(p, e, pts, c, g, near_m);
+  m.bands = compute_bands(p, e, pts, c, g, near_m, left.mask);
+
+  std::vector<cv::Point2f> px(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    px[i] = cv::Point2f(float(pts[i].u), float(pts[i].v));
+  m.confidence = depth_support(left.mask, px, p.support_radius * vs.width);
   return m;
+}
+
+double band_fill(const cv::Mat &mask, int row0, int row1, int *left, int *right)
+{
+  CV_Assert(mask.type() == CV_8UC1);
+  if (left)
+    *left = -1;
+  if (right)
+    *right = -1;
+  row0 = std::max(row0, 0);
+  row1 = std::min(row1, mask.rows);
+  if (row0 >= row1 || mask.cols == 0)
+    return 0.0;
+  cv::Mat any; // 1 x cols: non-zero where a column has canopy in one of the rows
+  cv::reduce(mask.rowRange(row0, row1), any, 0, cv::REDUCE_MAX);
+  const uchar *a = any.ptr<uchar>(0);
+  int xl = 0, xr = mask.cols - 1;
+  while (xl < mask.cols && !a[xl])
+    ++xl;
+  if (xl == mask.cols)
+    return 0.0;
+  while (!a[xr])
+    --xr;
+  int covered = 0;
+  for (int x = xl; x <= xr; ++x)
+    covered += a[x] ? 1 : 0;
+  if (left)
+    *left = xl;
+  if (right)
+    *right = xr;
+  return double(covered) / double(xr - xl + 1);
 }
 
 // ---- MetricsSmoother ----
@@ -595,6 +638,7 @@ TreeMetrics MetricsSmoother::update(const TreeMetrics &cur)
   out.complexity = mix(state_.complexity, cur.complexity);
   out.extent_depth_m = mix(state_.extent_depth_m, cur.extent_depth_m);
   out.centroid_m = a * state_.centroid_m + (1.0 - a) * cur.centroid_m;
+  out.confidence = mix(state_.confidence, cur.confidence);
   for (std::size_t i = 0; i < out.bands.size(); ++i) {
     const Band &prev = state_.bands[i];
     Band &b = out.bands[i];
@@ -606,6 +650,7 @@ TreeMetrics MetricsSmoother::update(const TreeMetrics &cur)
     b.right_m = mix(prev.right_m, b.right_m);
     b.width_m = b.right_m - b.left_m;
     b.depth_m = mix(prev.depth_m, b.depth_m);
+    b.fill = mix(prev.fill, b.fill);
   }
   state_ = out;
   return out;

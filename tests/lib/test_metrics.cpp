@@ -1,5 +1,6 @@
 // Tree metrics against canopies built analytically: a sphere, an ellipsoid of revolution and a
 // stepped flat canopy, silhouettes by ray casting through the rectified left camera.
+#include "treestereo/canopy.hpp"
 #include "treestereo/metrics.hpp"
 #include "treestereo/stats.hpp"
 
@@ -617,4 +618,166 @@ TEST(Metrics, AreaWeightingUndoesCrowdedPoints)
   EXPECT_NEAR(plain.distance_m, 2.0, 1e-9) << "the crowd wins without weights";
   EXPECT_NEAR(weighted.distance_m, 2.2, 1e-9);
   EXPECT_NEAR(weighted.thickness_m, 0.2, 1e-9);
+}
+
+namespace {
+
+// A flat canopy at z_mm in a 400 x 300 view: points on the mask's pixels every `step` px where
+// `take(u, v)` says so.
+struct FlatCase {
+  StereoGeometry g;
+  Silhouette sil;
+  std::vector<Point3> pts;
+};
+
+FlatCase flat_case(const cv::Mat &mask, int step, double z_mm,
+                   const std::function<bool(int, int)> &take)
+{
+  FlatCase c;
+  c.g.view_size = mask.size();
+  c.g.fx = c.g.fy = 800;
+  c.g.cx[0] = c.g.cx[1] = mask.cols / 2.0;
+  c.g.cy = mask.rows / 2.0;
+  c.g.baseline_mm = 50;
+  c.sil.present = true;
+  c.sil.mask = mask;
+  c.sil.bbox = cv::boundingRect(mask);
+  c.sil.area_px = cv::countNonZero(mask);
+  for (int v = 0; v < mask.rows; v += step)
+    for (int u = 0; u < mask.cols; u += step) {
+      if (!mask.at<uchar>(v, u) || !take(u, v))
+        continue;
+      Point3 p;
+      p.x = float((u - c.g.cx[0]) * z_mm / c.g.fx);
+      p.y = float((v - c.g.cy) * z_mm / c.g.fy);
+      p.z = float(z_mm);
+      p.match_index = std::uint32_t(c.pts.size());
+      c.pts.push_back(p);
+    }
+  return c;
+}
+
+} // namespace
+
+TEST(BandFill, ColumnCoverageOfConstructedMasks)
+{
+  cv::Mat mask = cv::Mat::zeros(100, 200, CV_8U);
+  mask(cv::Rect(50, 10, 100, 10)).setTo(255); // rows 10-19: columns 50-149 all canopy
+  mask(cv::Rect(50, 20, 25, 10)).setTo(255);  // rows 20-29: 50-74 and 125-149, half of 50-149
+  mask(cv::Rect(125, 20, 25, 10)).setTo(255);
+  mask(cv::Rect(50, 30, 100, 10)).setTo(255); // rows 30-39: a gap of 10 columns in 100
+  mask(cv::Rect(100, 30, 10, 10)).setTo(0);
+  mask(cv::Rect(50, 40, 50, 5)).setTo(255);   // rows 40-49: each column in one of the rows
+  mask(cv::Rect(100, 45, 50, 5)).setTo(255);
+  int l = 0, r = 0;
+  EXPECT_DOUBLE_EQ(band_fill(mask, 10, 20, &l, &r), 1.0);
+  EXPECT_EQ(l, 50);
+  EXPECT_EQ(r, 149);
+  EXPECT_DOUBLE_EQ(band_fill(mask, 20, 30, &l, &r), 0.5);
+  EXPECT_EQ(l, 50);
+  EXPECT_EQ(r, 149);
+  EXPECT_DOUBLE_EQ(band_fill(mask, 30, 40), 0.9);
+  EXPECT_DOUBLE_EQ(band_fill(mask, 40, 50), 1.0);
+  EXPECT_DOUBLE_EQ(band_fill(mask, 60, 100, &l, &r), 0.0) << "no canopy in the rows";
+  EXPECT_EQ(l, -1);
+  EXPECT_EQ(r, -1);
+  EXPECT_DOUBLE_EQ(band_fill(mask, 50, 10), 0.0) << "no rows";
+  EXPECT_DOUBLE_EQ(band_fill(mask, -20, 20), 1.0) << "rows clamped to the mask";
+  // one row: a single pixel is its own extent
+  cv::Mat dot = cv::Mat::zeros(5, 5, CV_8U);
+  dot.at<uchar>(2, 3) = 1;
+  EXPECT_DOUBLE_EQ(band_fill(dot, 0, 5, &l, &r), 1.0);
+  EXPECT_EQ(l, 3);
+  EXPECT_EQ(r, 3);
+}
+
+// Three bands of 20 rows each: full, half (two ends), a 10 % gap.
+TEST(Metrics, BandFillOfConstructedBands)
+{
+  cv::Mat mask = cv::Mat::zeros(300, 400, CV_8U);
+  mask(cv::Rect(100, 100, 200, 20)).setTo(255);
+  mask(cv::Rect(100, 120, 50, 20)).setTo(255);
+  mask(cv::Rect(250, 120, 50, 20)).setTo(255);
+  mask(cv::Rect(100, 140, 200, 20)).setTo(255);
+  mask(cv::Rect(200, 140, 20, 20)).setTo(0);
+  const FlatCase c = flat_case(mask, 4, 2000, [](int, int) { return true; });
+  MetricsParams p;
+  p.n_bands = 3;
+  const TreeMetrics m = compute_tree_metrics(c.sil, c.pts, c.g, p);
+  ASSERT_TRUE(m.tree_present);
+  ASSERT_EQ(m.bands.size(), 3u);
+  EXPECT_DOUBLE_EQ(m.bands[0].fill, 1.0);
+  EXPECT_DOUBLE_EQ(m.bands[1].fill, 0.5);
+  EXPECT_DOUBLE_EQ(m.bands[2].fill, 0.9);
+
+  // a band without canopy (a gap between two parts of the canopy): absent, fill 0
+  cv::Mat gap = cv::Mat::zeros(300, 400, CV_8U);
+  gap(cv::Rect(100, 100, 200, 20)).setTo(255);
+  gap(cv::Rect(100, 140, 200, 20)).setTo(255);
+  const FlatCase cg = flat_case(gap, 4, 2000, [](int, int) { return true; });
+  const TreeMetrics mg = compute_tree_metrics(cg.sil, cg.pts, cg.g, p);
+  ASSERT_EQ(mg.bands.size(), 3u);
+  EXPECT_FALSE(mg.bands[1].present);
+  EXPECT_EQ(mg.bands[1].fill, 0.0);
+  EXPECT_DOUBLE_EQ(mg.bands[0].fill, 1.0);
+  EXPECT_DOUBLE_EQ(mg.bands[2].fill, 1.0);
+}
+
+// Confidence: the share of the silhouette within support_radius of a counted point.
+TEST(Metrics, ConfidenceIsTheSilhouettesDepthSupport)
+{
+  cv::Mat mask = cv::Mat::zeros(300, 400, CV_8U);
+  mask(cv::Rect(100, 100, 200, 100)).setTo(255);
+  MetricsParams p;
+  p.support_radius = 0.005; // 2 px in 400
+  // points every 2 px on the whole canopy: all of it supported
+  const FlatCase all = flat_case(mask, 2, 2000, [](int, int) { return true; });
+  const TreeMetrics ma = compute_tree_metrics(all.sil, all.pts, all.g, p);
+  ASSERT_TRUE(ma.tree_present);
+  EXPECT_DOUBLE_EQ(ma.confidence, 1.0);
+  // on its left half only (u < 200): half of it, plus the 2 px the discs reach beyond
+  const FlatCase half = flat_case(mask, 2, 2000, [](int u, int) { return u < 200; });
+  const TreeMetrics mh = compute_tree_metrics(half.sil, half.pts, half.g, p);
+  ASSERT_TRUE(mh.tree_present);
+  EXPECT_NEAR(mh.confidence, 0.5, 0.015);
+  // the default radius (6 px here) reaches a little further
+  const TreeMetrics md = compute_tree_metrics(half.sil, half.pts, half.g, MetricsParams{});
+  EXPECT_NEAR(md.confidence, 0.5, 0.04);
+  EXPECT_GT(md.confidence, mh.confidence);
+  // points off the silhouette do not count (they are not the figures' points)
+  FlatCase off = flat_case(mask, 2, 2000, [](int u, int) { return u < 200; });
+  cv::Mat outside = cv::Mat::zeros(300, 400, CV_8U);
+  outside(cv::Rect(310, 100, 90, 100)).setTo(255);
+  const FlatCase extra = flat_case(outside, 2, 2000, [](int, int) { return true; });
+  off.pts.insert(off.pts.end(), extra.pts.begin(), extra.pts.end());
+  EXPECT_NEAR(compute_tree_metrics(off.sil, off.pts, off.g, p).confidence, mh.confidence, 0.011);
+  // no point: no tree, confidence 0
+  const TreeMetrics none = compute_tree_metrics(all.sil, {}, all.g, p);
+  EXPECT_FALSE(none.tree_present);
+  EXPECT_EQ(none.confidence, 0.0);
+  EXPECT_EQ(depth_support(mask, {}, 6.0), 0.0);
+  p.support_radius = -1;
+  EXPECT_THROW(compute_tree_metrics(all.sil, all.pts, all.g, p), std::runtime_error);
+}
+
+TEST(MetricsSmoother, FillAndConfidenceAreSmoothed)
+{
+  TreeMetrics a;
+  a.tree_present = true;
+  a.confidence = 0.4;
+  a.bands.resize(2);
+  a.bands[0].present = true;
+  a.bands[0].fill = 1.0;
+  a.bands[1].fill = 0.0; // absent
+  TreeMetrics b = a;
+  b.confidence = 0.8;
+  b.bands[0].fill = 0.5;
+  b.bands[1].present = true;
+  b.bands[1].fill = 0.7;
+  MetricsSmoother sm(0.5);
+  sm.update(a);
+  const TreeMetrics s = sm.update(b);
+  EXPECT_DOUBLE_EQ(s.confidence, 0.6);
+  EXPECT_DOUBLE_EQ(s.bands[0].fill, 0.75);
+  EXPECT_DOUBLE_EQ(s.bands[1].fill, 0.7) << "a band that appears takes the current value";
 }

@@ -251,6 +251,8 @@ fill_metrics (GstTreeStereoMetrics * m, gdouble k)
   m->clipped = GST_TREE_STEREO_CLIPPED_TOP | GST_TREE_STEREO_CLIPPED_RIGHT;
   m->n_points = 321;
   m->n_matches = 400;
+  m->confidence = 0.93 * k;
+  m->canopy_mode = GST_TREE_STEREO_CANOPY_TREE;
   gst_tree_stereo_metrics_set_n_bands (m, 4);
   for (guint i = 0; i < 4; i++) {
     m->bands[i].present = i != 2;
@@ -260,6 +262,7 @@ fill_metrics (GstTreeStereoMetrics * m, gdouble k)
     m->bands[i].right_m = 0.25 * k;
     m->bands[i].width_m = 0.45 * k;
     m->bands[i].depth_m = 1.9 + 0.01 * i;
+    m->bands[i].fill = i != 2 ? 0.6 + 0.1 * i * k : 0.0;
   }
 }
 
@@ -279,7 +282,11 @@ assert_metrics_equal (const GstTreeStereoMetrics * a, const GstTreeStereoMetrics
   fail_unless_equals_int (a->clipped, b->clipped);
   fail_unless_equals_int (a->n_points, b->n_points);
   fail_unless_equals_int (a->n_matches, b->n_matches);
+  fail_unless_equals_float (a->confidence, b->confidence);
+  fail_unless_equals_int (a->canopy_mode, b->canopy_mode);
   fail_unless_equals_int (a->n_bands, b->n_bands);
+  for (guint i = 0; i < a->n_bands; i++)
+    fail_unless_equals_float (a->bands[i].fill, b->bands[i].fill);
   if (a->n_bands)
     fail_unless (memcmp (a->bands, b->bands, sizeof (GstTreeStereoBand) * a->n_bands) == 0);
 }
@@ -355,6 +362,11 @@ GST_START_TEST (test_metrics_message_round_trip)
   str = gst_structure_to_string (s);
   fail_unless (strstr (str, "distance=(double)2") != NULL);
   fail_unless (strstr (str, "clipped-top=(boolean)true") != NULL);
+  fail_unless (strstr (str, "canopy-mode=(string)tree") != NULL);
+  fail_unless (strstr (str, "smoothed-canopy-mode=(string)tree") != NULL);
+  fail_unless (strstr (str, "confidence=(double)0.9") != NULL);
+  fail_unless (strstr (str, "smoothed-confidence=(double)") != NULL);
+  fail_unless (strstr (str, "fill\\=\\(double\\)0.") != NULL);
   g_free (str);
   fail_unless (gst_tree_stereo_metrics_message_parse (s, &r2, &s2, &t2));
   assert_metrics_equal (&r2, &raw);
@@ -362,6 +374,17 @@ GST_START_TEST (test_metrics_message_round_trip)
   fail_unless_equals_uint64 (t2.timestamp, t.timestamp);
   fail_unless_equals_uint64 (t2.stream_time, t.stream_time);
   fail_unless_equals_uint64 (t2.running_time, t.running_time);
+  /* the new figures are required: a message without them is malformed */
+  {
+    GstStructure *c = gst_structure_copy (s);
+    gst_structure_remove_field (c, "confidence");
+    fail_if (gst_tree_stereo_metrics_message_parse (c, &r2, NULL, NULL));
+    gst_structure_free (c);
+    c = gst_structure_copy (s);
+    gst_structure_set (c, "canopy-mode", G_TYPE_STRING, "bogus", NULL);
+    fail_if (gst_tree_stereo_metrics_message_parse (c, &r2, NULL, NULL));
+    gst_structure_free (c);
+  }
   gst_structure_free (s);
 
   /* absent tree: no figures at all, and parsing gives zeros, not stale values */
@@ -369,11 +392,23 @@ GST_START_TEST (test_metrics_message_round_trip)
   s = gst_tree_stereo_metrics_message_structure (&raw, NULL, NULL);
   fail_unless (!gst_structure_has_field (s, "distance"));
   fail_unless (!gst_structure_has_field (s, "bands"));
+  fail_unless (!gst_structure_has_field (s, "confidence"));
+  fail_unless_equals_string (gst_structure_get_string (s, "canopy-mode"), "colour");
   fail_unless (gst_tree_stereo_metrics_message_parse (s, &r2, NULL, &t2));
   fail_if (r2.tree_present);
   fail_unless_equals_float (r2.distance_m, 0.0);
+  fail_unless_equals_float (r2.confidence, 0.0);
   fail_unless (r2.bands == NULL);
   fail_unless_equals_uint64 (t2.timestamp, GST_CLOCK_TIME_NONE);
+  gst_structure_free (s);
+
+  /* absent tree in a 3D canopy mode: the mode still says what was looked for */
+  raw.canopy_mode = GST_TREE_STEREO_CANOPY_ROW;
+  s = gst_tree_stereo_metrics_message_structure (&raw, &raw, NULL);
+  fail_unless (gst_tree_stereo_metrics_message_parse (s, &r2, &s2, NULL));
+  fail_if (r2.tree_present);
+  fail_unless_equals_int (r2.canopy_mode, GST_TREE_STEREO_CANOPY_ROW);
+  fail_unless_equals_int (s2.canopy_mode, GST_TREE_STEREO_CANOPY_ROW);
   gst_structure_free (s);
 
   /* malformed: wrong name, a missing field */
@@ -386,6 +421,179 @@ GST_START_TEST (test_metrics_message_round_trip)
   gst_tree_stereo_metrics_clear (&r2);
   gst_tree_stereo_metrics_clear (&s2);
   gst_tree_stereo_metrics_clear (&smooth);
+}
+
+GST_END_TEST;
+
+static void
+fill_canopy (GstTreeStereoCanopyMeta * c, GstBuffer * mask)
+{
+  gint32 contour[] = { 0, 0, 31, 0, 31, 47, 0, 47 };
+  GstTreeStereoVegetationView *w = &c->view;
+
+  w->present = TRUE;
+  w->area_px = 1536;
+  w->perimeter_px = 158;
+  w->complexity = 1.29;
+  w->centroid_x = 15.5;
+  w->centroid_y = 23.5;
+  w->bbox_width = 32;
+  w->bbox_height = 48;
+  w->n_regions = 1;
+  gst_tree_stereo_vegetation_view_set_contour (w, contour, 4);
+  gst_tree_stereo_vegetation_view_set_mask (w, mask, 64, 48, 64);
+  c->near_m = 1.75;
+  c->far_m = 2.65;
+  c->zone_from_data = TRUE;
+  c->ground_found = TRUE;
+  c->ground_normal[0] = 0.01;
+  c->ground_normal[1] = -0.99;
+  c->ground_normal[2] = 0.14;
+  c->ground_d_m = 1.2;
+  c->n_segments = 3;
+  c->left_m = -0.45;
+  c->right_m = 0.5;
+  c->n_points = 900;
+  c->n_canopy_points = 610;
+  c->n_seam_pixels = 77;
+}
+
+static void
+assert_canopy_figures_equal (const GstTreeStereoCanopyMeta * a, const GstTreeStereoCanopyMeta * b)
+{
+  fail_unless_equals_int (a->mode, b->mode);
+  fail_unless_equals_float (a->near_m, b->near_m);
+  fail_unless_equals_float (a->far_m, b->far_m);
+  fail_unless_equals_int (a->zone_from_data, b->zone_from_data);
+  fail_unless_equals_int (a->ground_found, b->ground_found);
+  for (int i = 0; i < 3; i++)
+    fail_unless_equals_float (a->ground_normal[i], b->ground_normal[i]);
+  fail_unless_equals_float (a->ground_d_m, b->ground_d_m);
+  fail_unless_equals_int (a->n_segments, b->n_segments);
+  fail_unless_equals_float (a->left_m, b->left_m);
+  fail_unless_equals_float (a->right_m, b->right_m);
+  fail_unless_equals_int (a->n_points, b->n_points);
+  fail_unless_equals_int (a->n_canopy_points, b->n_canopy_points);
+  fail_unless_equals_int (a->n_seam_pixels, b->n_seam_pixels);
+}
+
+GST_START_TEST (test_canopy_meta)
+{
+  GstBuffer *buf = gst_buffer_new (), *copy, *scaled, *mask = make_mask (64, 48, 64);
+  GstTreeStereoCanopyMeta *c, *d;
+  GstMapInfo map;
+
+  c = gst_buffer_add_tree_stereo_canopy_meta (buf, GST_TREE_STEREO_CANOPY_TREE);
+  fail_unless (c != NULL);
+  fail_unless_equals_int (c->mode, GST_TREE_STEREO_CANOPY_TREE);
+  fail_if (c->view.present);
+  fail_unless (c->view.mask == NULL && c->view.contour == NULL);
+  fail_unless_equals_float (c->near_m, 0.0);
+  fail_unless (gst_buffer_get_tree_stereo_canopy_meta (buf) == c);
+  fail_unless (gst_meta_api_type_has_tag (GST_TREE_STEREO_CANOPY_META_API_TYPE,
+          g_quark_from_static_string (GST_META_TAG_VIDEO_STR)));
+  fail_unless (gst_meta_api_type_has_tag (GST_TREE_STEREO_CANOPY_META_API_TYPE,
+          g_quark_from_static_string (GST_META_TAG_VIDEO_SIZE_STR)));
+  fail_unless (gst_meta_api_type_has_tag (GST_TREE_STEREO_CANOPY_META_API_TYPE,
+          g_quark_from_static_string (GST_META_TAG_VIDEO_ORIENTATION_STR)));
+  fill_canopy (c, mask);
+  gst_buffer_unref (mask);
+
+  /* a copy: every figure, the contour copied, the mask shared */
+  copy = gst_buffer_copy (buf);
+  d = gst_buffer_get_tree_stereo_canopy_meta (copy);
+  fail_unless (d != NULL && d != c);
+  assert_canopy_figures_equal (d, c);
+  fail_unless (d->view.present);
+  fail_unless_equals_float (d->view.area_px, 1536);
+  fail_unless_equals_float (d->view.perimeter_px, 158);
+  fail_unless_equals_float (d->view.complexity, 1.29);
+  fail_unless_equals_float (d->view.centroid_x, 15.5);
+  fail_unless_equals_int (d->view.bbox_width, 32);
+  fail_unless_equals_int (d->view.n_regions, 1);
+  fail_unless_equals_int (d->view.n_contour, 4);
+  fail_unless (d->view.contour != c->view.contour);
+  fail_unless (memcmp (d->view.contour, c->view.contour, 8 * sizeof (gint32)) == 0);
+  fail_unless (d->view.mask == c->view.mask);
+  fail_unless_equals_int (d->view.mask_stride, 64);
+
+  /* a scale (the side-by-side frame 128x48 to 64x24): the view's pixel figures and mask scale
+   * as the vegetation meta's do, metres and counts stay */
+  scaled = scale_buffer (buf, 128, 48, 64, 24);
+  d = gst_buffer_get_tree_stereo_canopy_meta (scaled);
+  fail_unless (d != NULL);
+  assert_canopy_figures_equal (d, c);
+  fail_unless_equals_float (d->view.area_px, 1536 / 4.0);
+  fail_unless_equals_float (d->view.centroid_x, 15.5 / 2);
+  fail_unless_equals_int (d->view.bbox_width, 16);
+  fail_unless_equals_int (d->view.contour[2], 16);
+  fail_unless_equals_int (d->view.mask_width, 32);
+  fail_unless_equals_int (d->view.mask_height, 24);
+  fail_unless (gst_buffer_map (d->view.mask, &map, GST_MAP_READ));
+  fail_unless_equals_int (map.size, 32 * 24);
+  fail_unless_equals_int (map.data[5 * 32 + 15], 255);
+  fail_unless_equals_int (map.data[5 * 32 + 16], 0);
+  gst_buffer_unmap (d->view.mask, &map);
+
+  gst_buffer_unref (scaled);
+  gst_buffer_unref (copy);
+  gst_buffer_unref (buf);
+}
+
+GST_END_TEST;
+
+GST_START_TEST (test_canopy_message_round_trip)
+{
+  GstBuffer *buf = gst_buffer_new (), *mask = make_mask (64, 48, 64);
+  GstTreeStereoCanopyMeta *c, back;
+  GstTreeStereoDepthStats ds = { 300, 290, 4, 6, 2001.5, 12.25, 1900, 2200, 3, 1850.5, 2250.25,
+    250 }, ds2;
+  GstStructure *s;
+  gboolean dense;
+
+  c = gst_buffer_add_tree_stereo_canopy_meta (buf, GST_TREE_STEREO_CANOPY_ROW);
+  fill_canopy (c, mask);
+  gst_buffer_unref (mask);
+
+  /* added to stereodepth's message, which still parses as it did */
+  s = gst_tree_stereo_depth_message_structure (FALSE, &ds, NULL);
+  gst_tree_stereo_canopy_message_add (s, c);
+  fail_unless (gst_tree_stereo_depth_message_parse (s, &dense, &ds2, NULL));
+  fail_unless_equals_string (gst_structure_get_string (s, "canopy-mode"), "row");
+  memset (&back, 0, sizeof back);
+  fail_unless (gst_tree_stereo_canopy_message_parse (s, &back));
+  fail_unless (back.view.present);
+  fail_unless_equals_int (back.mode, GST_TREE_STEREO_CANOPY_ROW);
+  fail_unless_equals_float (back.near_m, 1.75);
+  fail_unless_equals_float (back.far_m, 2.65);
+  fail_unless (back.ground_found);
+  fail_unless_equals_int (back.n_segments, 3);
+  fail_unless_equals_int (back.n_canopy_points, 610);
+  fail_unless (back.view.mask == NULL && back.view.contour == NULL);
+  gst_structure_free (s);
+
+  /* no canopy in the zone */
+  c->view.present = FALSE;
+  c->ground_found = FALSE;
+  c->mode = GST_TREE_STEREO_CANOPY_TREE;
+  s = gst_structure_new_empty ("stereodepth");
+  gst_tree_stereo_canopy_message_add (s, c);
+  fail_unless (gst_tree_stereo_canopy_message_parse (s, &back));
+  fail_if (back.view.present);
+  fail_if (back.ground_found);
+  fail_unless_equals_int (back.mode, GST_TREE_STEREO_CANOPY_TREE);
+
+  /* malformed: a field missing, an unknown mode; a message without any canopy field */
+  gst_structure_remove_field (s, "segments");
+  fail_if (gst_tree_stereo_canopy_message_parse (s, &back));
+  gst_tree_stereo_canopy_message_add (s, c);
+  gst_structure_set (s, "canopy-mode", G_TYPE_STRING, "colour-ish", NULL);
+  fail_if (gst_tree_stereo_canopy_message_parse (s, &back));
+  gst_structure_free (s);
+  s = gst_tree_stereo_depth_message_structure (FALSE, &ds, NULL);
+  fail_if (gst_tree_stereo_canopy_message_parse (s, &back));
+  gst_structure_free (s);
+  gst_buffer_unref (buf);
 }
 
 GST_END_TEST;
@@ -511,6 +719,27 @@ GST_START_TEST (test_enum_names)
   fail_unless (gst_tree_stereo_vegetation_index_to_string (99) == NULL);
   fail_unless (gst_tree_stereo_match_method_from_string ("euclidean", &m));
   fail_unless_equals_int (m, GST_TREE_STEREO_MATCH_EUCLIDEAN);
+  {
+    GstTreeStereoCanopyMode cm;
+    GEnumClass *klass;
+    fail_unless_equals_string (gst_tree_stereo_canopy_mode_to_string
+        (GST_TREE_STEREO_CANOPY_COLOUR), "colour");
+    fail_unless_equals_string (gst_tree_stereo_canopy_mode_to_string
+        (GST_TREE_STEREO_CANOPY_TREE), "tree");
+    fail_unless_equals_string (gst_tree_stereo_canopy_mode_to_string
+        (GST_TREE_STEREO_CANOPY_ROW), "row");
+    fail_unless (gst_tree_stereo_canopy_mode_to_string (3) == NULL);
+    fail_unless (gst_tree_stereo_canopy_mode_from_string ("row", &cm));
+    fail_unless_equals_int (cm, GST_TREE_STEREO_CANOPY_ROW);
+    fail_if (gst_tree_stereo_canopy_mode_from_string ("color", &cm));
+    fail_if (gst_tree_stereo_canopy_mode_from_string (NULL, &cm));
+    klass = g_type_class_ref (GST_TYPE_TREE_STEREO_CANOPY_MODE);
+    fail_unless_equals_string (g_enum_get_value (klass, GST_TREE_STEREO_CANOPY_TREE)->value_nick,
+        "tree");
+    fail_unless (g_enum_get_value_by_nick (klass, "colour")->value ==
+        GST_TREE_STEREO_CANOPY_COLOUR);
+    g_type_class_unref (klass);
+  }
 }
 
 GST_END_TEST;
@@ -527,6 +756,8 @@ meta_suite (void)
   tcase_add_test (tc, test_matches_and_points_meta);
   tcase_add_test (tc, test_metrics_and_truth_meta);
   tcase_add_test (tc, test_metrics_message_round_trip);
+  tcase_add_test (tc, test_canopy_meta);
+  tcase_add_test (tc, test_canopy_message_round_trip);
   tcase_add_test (tc, test_other_messages_round_trip);
   tcase_add_test (tc, test_times_from_buffer);
   tcase_add_test (tc, test_enum_names);

@@ -101,6 +101,10 @@ struct MetricsParams {
   // silhouette area nearest to it (its Voronoi cell inside the mask), so that points crowding on
   // the textured front leaves do not pull the median forward. false: every point counts once.
   bool area_weighted = true;
+  // TreeMetrics::confidence: a silhouette pixel has depth support when a counted point lies
+  // within this share of the view's width of it (0.015: 19 px at 1296 px wide, about the
+  // spacing of stereodepth's densification grid, so that an evenly measured canopy reads ~1).
+  double support_radius = 0.015;
 };
 
 struct Clipped {
@@ -121,6 +125,10 @@ struct Band {
   double depth_m = 0;
   bool depth_measured = false;
   std::size_t n_points = 0;
+  // Share (0..1) of the band's left-right extent covered by canopy: of the columns between the
+  // band's leftmost and rightmost canopy pixel, those with canopy in at least one of the band's
+  // rows (band_fill()). 0 when the band is absent.
+  double fill = 0;
 };
 
 struct TreeMetrics {
@@ -139,7 +147,19 @@ struct TreeMetrics {
   std::size_t points = 0;         // valid points on the canopy the figures rest on
   std::size_t matches = 0;        // correspondences the points came from (points.size())
   double extent_depth_m = 0;      // the depth the silhouette was converted at (see header)
+  // How much of the silhouette has depth support (0..1): the share of its pixels within
+  // MetricsParams::support_radius of a point that counts for the figures (depth_support() of
+  // canopy.hpp). Low when the figures rest on a few points in one part of the canopy.
+  double confidence = 0;
 };
+
+// Column coverage of a mask over rows [row0, row1) (clamped to the mask): the columns between
+// the leftmost and rightmost non-zero pixel of those rows, and of them the share that has a
+// non-zero pixel in at least one of the rows: covered / (right - left + 1). 0 (and left = right =
+// -1) when the rows hold no non-zero pixel. The definition of Band::fill, public so that a ground
+// truth mask is measured the same way. `mask`: CV_8U.
+double band_fill(const cv::Mat &mask, int row0, int row1, int *left = nullptr,
+                 int *right = nullptr);
 
 // Throws std::runtime_error when the geometry is invalid, the mask's size is not the view size,
 // or the parameters are out of range.
@@ -147,8 +167,8 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
                                  const StereoGeometry &geometry, const MetricsParams &params);
 
 // Exponential smoothing across frames: out = alpha * previous + (1 - alpha) * current for the
-// continuous fields (distances, extents, area, perimeter, complexity, centroid, band values of
-// bands present in both frames); flags and counts are the current frame's. alpha = 0 is off.
+// continuous fields (distances, extents, area, perimeter, complexity, centroid, confidence, band
+// values and fill of bands present in both frames); flags and counts are the current frame's. alpha = 0 is off.
 // A frame without a tree is passed on unchanged and forgets the history, so no stale value
 // ever reaches a no-tree frame or the next tree. A change in the number of bands also resets.
 class MetricsSmoother {

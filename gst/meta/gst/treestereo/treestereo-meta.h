@@ -291,6 +291,83 @@ void gst_tree_stereo_points_meta_set_depth_map (GstTreeStereoPointsMeta *meta, G
     gint x, gint y, guint width, guint height, guint stride);
 
 /* -------------------------------------------------------------------------------------------
+ * The 3D canopy (stereodepth)
+ * ------------------------------------------------------------------------------------------- */
+
+/**
+ * GstTreeStereoCanopyMode:
+ * @GST_TREE_STEREO_CANOPY_COLOUR: no 3D canopy upstream: the canopy is the colour silhouette
+ *   (exgsegment's vegetation in the left view)
+ * @GST_TREE_STEREO_CANOPY_TREE: the tree in front, decided in 3D (near row, above the ground,
+ *   separated from its neighbours along the row)
+ * @GST_TREE_STEREO_CANOPY_ROW: the near row's vegetation in view, decided in 3D (hedgerows,
+ *   fruit walls)
+ *
+ * What "the canopy" measured is. Names in messages: "colour", "tree", "row".
+ */
+typedef enum {
+  GST_TREE_STEREO_CANOPY_COLOUR = 0,
+  GST_TREE_STEREO_CANOPY_TREE = 1,
+  GST_TREE_STEREO_CANOPY_ROW = 2,
+} GstTreeStereoCanopyMode;
+
+GType gst_tree_stereo_canopy_mode_get_type (void);
+#define GST_TYPE_TREE_STEREO_CANOPY_MODE (gst_tree_stereo_canopy_mode_get_type ())
+
+/**
+ * GstTreeStereoCanopyMeta:
+ * @mode: #GST_TREE_STEREO_CANOPY_TREE or #GST_TREE_STEREO_CANOPY_ROW
+ * @view: the 3D canopy's silhouette in the LEFT view, as the vegetation meta's views are (its
+ *   mask a GstBuffer shared by reference, contour, area, bbox...); @view.present FALSE: no
+ *   canopy in the zone (the tree is absent, whatever colour says)
+ * @near_m: the depth zone used, nearest Z (m)
+ * @far_m: the depth zone used, farthest Z (m)
+ * @zone_from_data: TRUE when the zone is the near row found in the data, FALSE the user's
+ *   spray zone
+ * @ground_found: TRUE when a ground plane was found (fitted or from the rig)
+ * @ground_normal: the ground plane's unit normal (pointing up), rectified-left frame
+ * @ground_d_m: the plane's offset: normal . X + d = 0 (X in m)
+ * @n_segments: near-row segments along the row
+ * @left_m: X of the selected canopy's leftmost point (m)
+ * @right_m: X of its rightmost point (m)
+ * @n_points: 3D points the decision was made on
+ * @n_canopy_points: of them, on the selected canopy
+ * @n_seam_pixels: mask pixels decided by the photo-consistency test on a seam
+ *
+ * Added by stereodepth when it decides the canopy in 3D. treemetrics measures @view instead of
+ * the vegetation meta's left view, treeoverlay outlines it.
+ */
+typedef struct {
+  GstMeta meta;
+
+  GstTreeStereoCanopyMode mode;
+  GstTreeStereoVegetationView view;
+  gdouble near_m;
+  gdouble far_m;
+  gboolean zone_from_data;
+  gboolean ground_found;
+  gdouble ground_normal[3];
+  gdouble ground_d_m;
+  guint n_segments;
+  gdouble left_m;
+  gdouble right_m;
+  guint n_points;
+  guint n_canopy_points;
+  guint n_seam_pixels;
+} GstTreeStereoCanopyMeta;
+
+GType gst_tree_stereo_canopy_meta_api_get_type (void);
+const GstMetaInfo *gst_tree_stereo_canopy_meta_get_info (void);
+#define GST_TREE_STEREO_CANOPY_META_API_TYPE (gst_tree_stereo_canopy_meta_api_get_type ())
+#define GST_TREE_STEREO_CANOPY_META_INFO (gst_tree_stereo_canopy_meta_get_info ())
+
+/* Adds a canopy meta with all figures zero (an empty view) in @mode; the caller fills it in. */
+GstTreeStereoCanopyMeta *gst_buffer_add_tree_stereo_canopy_meta (GstBuffer *buffer,
+    GstTreeStereoCanopyMode mode);
+#define gst_buffer_get_tree_stereo_canopy_meta(b) \
+  ((GstTreeStereoCanopyMeta *) gst_buffer_get_meta ((b), GST_TREE_STEREO_CANOPY_META_API_TYPE))
+
+/* -------------------------------------------------------------------------------------------
  * Tree metrics (treemetrics)
  * ------------------------------------------------------------------------------------------- */
 
@@ -311,6 +388,9 @@ typedef enum {
  * @right_m: X of the right edge (m)
  * @width_m: right_m - left_m
  * @depth_m: nearest-face depth of the canopy in the band (m)
+ * @fill: share (0..1) of the band's left-right extent covered by canopy: of the image columns
+ *   between the band's leftmost and rightmost canopy pixel, those with canopy in at least one
+ *   of the band's rows
  */
 typedef struct {
   gboolean present;
@@ -320,13 +400,17 @@ typedef struct {
   gdouble right_m;
   gdouble width_m;
   gdouble depth_m;
+  gdouble fill;
 } GstTreeStereoBand;
 
 /**
  * GstTreeStereoMetrics:
  *
  * Every figure of the treemetrics message (see docs/elements/treemetrics.md). When
- * @tree_present is FALSE all other values are 0 and carry no meaning.
+ * @tree_present is FALSE all other values but @canopy_mode are 0 and carry no meaning.
+ * @confidence: how much of the measured silhouette has depth support (0..1): the share of its
+ *   pixels near a 3D point the figures rest on
+ * @canopy_mode: #GstTreeStereoCanopyMode of the silhouette measured (set with or without a tree)
  */
 typedef struct {
   gboolean tree_present;
@@ -343,6 +427,8 @@ typedef struct {
   guint n_matches;
   guint n_bands;
   GstTreeStereoBand *bands;
+  gdouble confidence;
+  guint canopy_mode; /* GstTreeStereoCanopyMode */
 } GstTreeStereoMetrics;
 
 /* Deep copy (bands too) of @src into @dest; @dest is cleared first. */
@@ -507,12 +593,22 @@ GstStructure *gst_tree_stereo_depth_message_structure (gboolean dense,
 gboolean gst_tree_stereo_depth_message_parse (const GstStructure *s, gboolean *dense,
     GstTreeStereoDepthStats *stats, GstTreeStereoTimes *times);
 
+/* The 3D canopy's figures, added to another element's message (stereodepth's): "canopy-present"
+ * (gboolean), "canopy-mode" (string), "canopy-near", "canopy-far" (gdouble, m, the zone used),
+ * "ground-found" (gboolean), "segments", "canopy-points" (guint). */
+void gst_tree_stereo_canopy_message_add (GstStructure *s, const GstTreeStereoCanopyMeta *meta);
+/* Reads those fields back into @meta's figures (view.present, mode, near_m, far_m, ground_found,
+ * n_segments, n_canopy_points; no mask, no contour). Returns FALSE when one is missing or
+ * malformed (a message without a 3D canopy). */
+gboolean gst_tree_stereo_canopy_message_parse (const GstStructure *s,
+    GstTreeStereoCanopyMeta *meta);
+
 /* treemetrics: "tree-present"; when present also "distance", "height", "width", "thickness"
  * (m), "area" (m2), "perimeter" (m), "complexity", "centroid-x/-y/-z" (m), "clipped" (flags)
  * and "clipped-top/-bottom/-left/-right" (booleans), "points", "matches", "bands" (a
  * GstValueArray of GstStructures "band" with "top", "bottom", "left", "right", "width",
- * "depth", "present"), and the same figures smoothed under "smoothed-" names when
- * @smoothed is not NULL. */
+ * "depth", "fill", "present"), "confidence"; always "canopy-mode" (string); and the same figures
+ * smoothed under "smoothed-" names when @smoothed is not NULL. */
 GstStructure *gst_tree_stereo_metrics_message_structure (const GstTreeStereoMetrics *metrics,
     const GstTreeStereoMetrics *smoothed, const GstTreeStereoTimes *times);
 /* Parses the raw figures into @metrics, the smoothed ones into @smoothed when not NULL. Both
@@ -528,6 +624,9 @@ gboolean gst_tree_stereo_vegetation_index_from_string (const gchar *s,
 const gchar *gst_tree_stereo_match_method_to_string (GstTreeStereoMatchMethod method);
 gboolean gst_tree_stereo_match_method_from_string (const gchar *s,
     GstTreeStereoMatchMethod *method);
+/* "colour", "tree", "row"; NULL for an unknown mode. */
+const gchar *gst_tree_stereo_canopy_mode_to_string (GstTreeStereoCanopyMode mode);
+gboolean gst_tree_stereo_canopy_mode_from_string (const gchar *s, GstTreeStereoCanopyMode *mode);
 
 G_END_DECLS
 
