@@ -2,6 +2,8 @@
 // calibration and the ground truth, as the paper stores its captures (left/right image
 // sequences). Used for the committed test fixtures (scripts/make-fixtures.sh) and for trying
 // the measuring tool on files. Output is byte-for-byte reproducible for the same options.
+// --scene orchard|hedgerow stands the tree in a row (neighbours, a row behind, grass); truth.json
+// then also names the scene, the tree in front and the near-row trees in view of each frame.
 #include "treestereo/calibration.hpp"
 #include "treestereo/json.hpp"
 #include "treestereo/rectify.hpp"
@@ -38,7 +40,8 @@ int run(int argc, char **argv)
   gint64 seed = 1;
   gint frames = 8;
   gdouble distance = 2.0, speed = 0.0, light = 1.0, noise = 2.0, fps = 7.0, baseline = 50.0;
-  gchar *size = nullptr, *out = nullptr, *ext = nullptr;
+  gchar *size = nullptr, *out = nullptr, *ext = nullptr, *scene = nullptr, *row_gap = nullptr;
+  gdouble row_spacing = -1.0;
   gint jpeg_quality = 92;
   GOptionEntry entries[] = {
       {"seed", 0, 0, G_OPTION_ARG_INT64, &seed, "Scene seed (default 1)", "N"},
@@ -53,6 +56,11 @@ int run(int argc, char **argv)
       {"format", 0, 0, G_OPTION_ARG_STRING, &ext, "Image format: png or jpg (png)", "EXT"},
       {"quality", 0, 0, G_OPTION_ARG_INT, &jpeg_quality, "JPEG quality (92)", "Q"},
       {"output", 'o', 0, G_OPTION_ARG_FILENAME, &out, "Output folder (created)", "DIR"},
+      {"scene", 0, 0, G_OPTION_ARG_STRING, &scene, "Scene: lab, orchard or hedgerow (lab)", "KIND"},
+      {"row-gap", 0, 0, G_OPTION_ARG_STRING, &row_gap,
+       "Gap between neighbouring canopies of the row, m (scene's default)", "MIN:MAX"},
+      {"row-spacing", 0, 0, G_OPTION_ARG_DOUBLE, &row_spacing,
+       "Distance from the row to the next row behind, m (3.5)", "M"},
       {nullptr}};
   GOptionContext *ctx = g_option_context_new("- render the synthetic stereo orchard to files");
   g_option_context_set_summary(
@@ -85,6 +93,22 @@ int run(int argc, char **argv)
   p.light = light;
   p.noise = noise;
   p.baseline_mm = baseline;
+  if (scene)
+    p.kind = scene_kind_from_name(scene);
+  if (row_gap) {
+    double lo = 0, hi = 0;
+    char end = 0;
+    if (std::sscanf(row_gap, "%lf:%lf%c", &lo, &hi, &end) != 2) {
+      std::fprintf(stderr, "treestereo-synth: --row-gap expects MIN:MAX in m, got '%s'\n", row_gap);
+      return 2;
+    }
+    p.row_gap_min_mm = lo * 1000.0;
+    p.row_gap_max_mm = hi * 1000.0;
+  }
+  if (row_spacing >= 0)
+    p.row_spacing_mm = row_spacing * 1000.0;
+  g_free(scene);
+  g_free(row_gap);
   if (size) {
     int w = 0, h = 0;
     if (std::sscanf(size, "%dx%d", &w, &h) != 2) {
@@ -106,6 +130,13 @@ int run(int argc, char **argv)
     return 1;
   }
   SceneRenderer renderer(p); // validates the parameters
+  // The left view's x extent per unit depth, for the near-row trees in view.
+  double ray_lo = 0, ray_hi = 0;
+  {
+    std::vector<cv::Mat> xy;
+    cv::split(renderer.normalized_rays(0), xy);
+    cv::minMaxLoc(xy[0], &ray_lo, &ray_hi);
+  }
   save_calibration(renderer.calibration(), dir + "/calibration.yml");
   const StereoRectification rect = compute_rectification(renderer.calibration(), p.image_size);
 
@@ -144,8 +175,26 @@ int run(int argc, char **argv)
         .field("canopy_height_m", t.canopy_height_m)
         .field("canopy_width_m", t.canopy_width_m)
         .field("canopy_depth_m", t.canopy_depth_m)
-        .field("lateral_offset_m", t.lateral_offset_m)
-        .key("left_camera");
+        .field("lateral_offset_m", t.lateral_offset_m);
+    if (p.kind != SceneKind::Lab) {
+      // The near-row trees the left view sees at the trunks' distance.
+      const double travel = renderer.travel_mm(std::uint64_t(f));
+      w.field("scene", scene_kind_name(p.kind)).field("front_tree", t.front_tree).key("row_trees").begin_array();
+      for (const RowTree &r : renderer.row_trees(travel + ray_lo * p.distance_mm,
+                                                 travel + ray_hi * p.distance_mm))
+        w.begin_object()
+            .field("index", r.index)
+            .field("x_m", r.x_m)
+            .field("start_m", r.start_m)
+            .field("end_m", r.end_m)
+            .field("height_m", r.height_m)
+            .field("width_m", r.width_m)
+            .field("depth_m", r.depth_m)
+            .field("distance_m", r.distance_m)
+            .end_object();
+      w.end_array();
+    }
+    w.key("left_camera");
     write_truth(w, t);
     w.key("rectified_left");
     write_truth(w, truth_in_frame(t, rect.geometry.R1));

@@ -137,6 +137,23 @@ cv::Vec3f soil_color(double x, double z, double footprint, std::uint32_t seed)
   return c * (0.3f + 0.7f * lambert(cv::Vec3d(0, -1, 0)));
 }
 
+cv::Vec3f grass_color(double x, double z, double footprint, std::uint32_t seed)
+{
+  // Linear levels: lawn green (ExG about +100), straw (ExG about 0) and bare earth (ExG < 0).
+  const cv::Vec3f green(66, 118, 40), lush(48, 104, 34), straw(164, 146, 118), earth(132, 104, 88);
+  const float patches = fbm2(x, z, 1400.0, 3, footprint, seed + 51U);
+  const float tone = fbm2(x, z, 320.0, 2, footprint, seed + 52U);
+  const float clumps = fbm2(x, z, 60.0, 3, footprint, seed + 53U);
+  const float blades = fbm2(x * 2.2, z, 9.0, 3, footprint, seed + 54U);
+  cv::Vec3f c = mix(green, lush, tone);
+  // Dry patches where the slow noise is high; bare earth in the middle of the largest ones.
+  const float dry = smoothstep(0.56f, 0.68f, patches);
+  cv::Vec3f d = mix(straw, earth, smoothstep(0.72f, 0.85f, patches) * 0.7f);
+  c = mix(c, d, dry);
+  c *= (0.72f + 0.45f * clumps) * (0.7f + 0.6f * blades);
+  return c * (0.3f + 0.7f * lambert(cv::Vec3d(0, -1, 0)));
+}
+
 cv::Vec3f wall_color(double x, double height, double footprint, std::uint32_t seed)
 {
   // Concrete blocks 400 x 200 mm in a running bond, 12 mm mortar joints.

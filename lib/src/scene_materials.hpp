@@ -38,6 +38,11 @@ cv::Vec3f bark_color(double angle_mm, double y, const cv::Vec3d &normal, double 
 // Soil at a world point of the ground plane (x, z in mm; world = fixed to the ground).
 cv::Vec3f soil_color(double x, double z, double footprint, std::uint32_t seed);
 
+// Mown grass at a world point of the ground plane (x, z in mm): green (excess green 2G-R-B
+// clearly positive) with dry yellow-brown patches (excess green about zero or below), clumps
+// and blades for the feature detector.
+cv::Vec3f grass_color(double x, double z, double footprint, std::uint32_t seed);
+
 // The wall behind the row at a world point (x, height above ground, mm).
 cv::Vec3f wall_color(double x, double height, double footprint, std::uint32_t seed);
 
