@@ -11,6 +11,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <string>
 #include <thread>
 
 using namespace treestereo;
@@ -485,4 +487,284 @@ TEST(Scene, ConcurrentRendersEqualSequentialOnes)
   t.join();
   EXPECT_EQ(cv::norm(seq[0], par[0], cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(seq[1], par[1], cv::NORM_INF), 0.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Orchard and hedgerow
+
+namespace {
+
+SceneParams row_scene(SceneKind kind, double noise = 2.0)
+{
+  SceneParams p = vga(noise);
+  p.kind = kind;
+  p.seed = 3;
+  return p;
+}
+
+int count_label(const GroundTruth &g, SurfaceLabel l)
+{
+  cv::Mat m;
+  cv::compare(g.labels, int(l), m, cv::CMP_EQ);
+  return cv::countNonZero(m);
+}
+
+} // namespace
+
+TEST(SceneOrchard, KindNamesRoundTripAndUnknownNamesAreRejected)
+{
+  for (SceneKind k : {SceneKind::Lab, SceneKind::Orchard, SceneKind::Hedgerow})
+    EXPECT_EQ(scene_kind_from_name(scene_kind_name(k)), k);
+  try {
+    scene_kind_from_name("forest");
+    FAIL() << "no exception";
+  } catch (const std::runtime_error &e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("forest"), std::string::npos) << what;
+    EXPECT_NE(what.find("lab, orchard, hedgerow"), std::string::npos) << what;
+  }
+}
+
+TEST(SceneOrchard, BadRowParametersAreNamed)
+{
+  auto message = [](const SceneParams &p) -> std::string {
+    try {
+      SceneRenderer r(p);
+    } catch (const std::runtime_error &e) {
+      return e.what();
+    }
+    return "";
+  };
+  SceneParams p = row_scene(SceneKind::Orchard);
+  p.row_gap_min_mm = 500;
+  p.row_gap_max_mm = 100;
+  EXPECT_NE(message(p).find("row_gap_max_mm"), std::string::npos) << message(p);
+  p = row_scene(SceneKind::Orchard);
+  p.row_gap_min_mm = -0.6 * p.canopy_width_mm;
+  EXPECT_NE(message(p).find("row_gap_min_mm"), std::string::npos) << message(p);
+  p = row_scene(SceneKind::Orchard);
+  p.row_spacing_mm = 1000;
+  EXPECT_NE(message(p).find("row_spacing_mm"), std::string::npos) << message(p);
+  p = row_scene(SceneKind::Hedgerow);
+  p.row_spacing_mm = std::nan("");
+  p.row_gap_max_mm = std::numeric_limits<double>::infinity();
+  EXPECT_NE(message(p).find("row_gap_max_mm"), std::string::npos) << message(p);
+  // The wall must stand at least 1 m behind the back row; left at its default it moves back.
+  p = row_scene(SceneKind::Orchard);
+  p.row_spacing_mm = 8000;
+  p.background_distance_mm = 10500;
+  EXPECT_NE(message(p).find("background_distance_mm"), std::string::npos) << message(p);
+  p.background_distance_mm = SceneParams{}.background_distance_mm;
+  EXPECT_EQ(message(p), "");
+  EXPECT_GE(resolve_scene_params(p).background_distance_mm,
+            p.distance_mm + 8000 + 0.5 * 1.3 * p.canopy_depth_mm + 3000 - 1e-9);
+  // Lab ignores the row parameters.
+  p = vga();
+  p.row_spacing_mm = 1;
+  EXPECT_EQ(message(p), "");
+}
+
+TEST(SceneOrchard, EveryKindOfSurfaceIsThereAndTheGrassIsGreenWithDryPatches)
+{
+  const SceneParams p = row_scene(SceneKind::Orchard, 0.0);
+  SceneRenderer r(p);
+  cv::Mat rgb;
+  GroundTruth g;
+  r.render(0, 0, rgb, &g);
+  for (SurfaceLabel l : {SurfaceLabel::Sky, SurfaceLabel::Ground, SurfaceLabel::Background,
+                         SurfaceLabel::Trunk, SurfaceLabel::Leaf, SurfaceLabel::RowLeaf,
+                         SurfaceLabel::BackLeaf})
+    EXPECT_GT(count_label(g, l), 100) << "label " << int(l);
+  // Grass: green on most of it (well inside, away from the blur of other surfaces), dry patches.
+  cv::Mat ground;
+  cv::compare(g.labels, int(SurfaceLabel::Ground), ground, cv::CMP_EQ);
+  cv::erode(ground, ground, cv::Mat());
+  int n = 0, green = 0, dry = 0;
+  for (int y = 0; y < kVga.height; ++y)
+    for (int x = 0; x < kVga.width; ++x)
+      if (ground.at<uchar>(y, x)) {
+        const int exg = excess_green(rgb.at<cv::Vec3b>(y, x));
+        ++n;
+        green += exg > 20;
+        dry += exg < 10;
+      }
+  std::printf("grass: 2G-R-B > 20 on %.1f %%, < 10 on %.1f %% of %d pixels\n", 100.0 * green / n,
+              100.0 * dry / n, n);
+  EXPECT_GT(green, n / 2);
+  EXPECT_GT(dry, n / 50);
+  // tree_index: the tree in front's leaves and trunk, the near row's, nothing else.
+  ASSERT_EQ(g.tree_index.type(), CV_16S);
+  ASSERT_EQ(g.tree_index.size(), kVga);
+  for (int y = 0; y < kVga.height; ++y)
+    for (int x = 0; x < kVga.width; ++x) {
+      const auto l = SurfaceLabel(g.labels.at<uchar>(y, x));
+      const int k = g.tree_index.at<std::int16_t>(y, x);
+      if (l == SurfaceLabel::Leaf) {
+        ASSERT_EQ(k, g.front_tree);
+      } else if (l == SurfaceLabel::RowLeaf) {
+        ASSERT_TRUE(k != g.front_tree && k != kNoTree);
+      } else if (l != SurfaceLabel::Trunk) {
+        ASSERT_EQ(k, kNoTree);
+      }
+    }
+  cv::Mat rows;
+  cv::compare(g.labels, int(SurfaceLabel::RowLeaf), rows, cv::CMP_EQ);
+  cv::bitwise_or(rows, g.canopy_mask, rows);
+  EXPECT_EQ(cv::countNonZero(rows != g.row_mask), 0);
+  EXPECT_EQ(g.row_points_mm.size(), std::size_t(cv::countNonZero(g.row_mask)));
+  EXPECT_EQ(g.canopy_points_mm.size(), std::size_t(cv::countNonZero(g.canopy_mask)));
+}
+
+TEST(SceneOrchard, TheTreeInFrontIsTheOneAskedForAndTheRowIsLaidOutWithTheGaps)
+{
+  SceneParams p = row_scene(SceneKind::Orchard);
+  p.distance_mm = 2300;
+  p.canopy_height_mm = 1000;
+  p.canopy_width_mm = 600;
+  SceneRenderer r(p);
+  cv::Mat rgb;
+  GroundTruth g;
+  r.render(0, 0, rgb, &g);
+  EXPECT_EQ(g.front_tree, 0);
+  EXPECT_NEAR(g.canopy_height_m, 1.0, 0.01);
+  EXPECT_NEAR(g.canopy_width_m, 0.6, 0.006);
+  EXPECT_NEAR(g.canopy_depth_m, p.canopy_depth_mm / 1000, 0.006);
+  EXPECT_NEAR(g.trunk_distance_m, 2.3, 1e-9);
+  EXPECT_NEAR(g.lateral_offset_m, 0.0, 1e-9);
+  for (const auto &q : g.canopy_points_mm) {
+    ASSERT_GE(q.x, -300.0 - 0.1);
+    ASSERT_LE(q.x, 300.0 + 0.1);
+  }
+
+  const auto row = r.row_trees(-30000, 30000);
+  ASSERT_GT(row.size(), 30u);
+  for (std::size_t i = 0; i + 1 < row.size(); ++i) {
+    ASSERT_EQ(row[i + 1].index, row[i].index + 1);
+    const double gap = row[i + 1].start_m - row[i].end_m;
+    EXPECT_GE(gap, 0.2 - 1e-6);
+    EXPECT_LE(gap, 0.6 + 1e-6);
+    EXPECT_NEAR(row[i].x_m, 0.5 * (row[i].start_m + row[i].end_m), 1e-6);
+    EXPECT_NEAR(row[i].distance_m, 2.3, 1e-9);
+    if (row[i].index == 0) {
+      EXPECT_NEAR(row[i].x_m, 0.0, 1e-9);
+      EXPECT_NEAR(row[i].width_m, 0.6, 1e-6);
+      EXPECT_NEAR(row[i].height_m, 1.0, 1e-6);
+    } else {
+      EXPECT_GE(row[i].width_m, 0.85 * 0.6 - 1e-6);
+      EXPECT_LE(row[i].width_m, 1.15 * 0.6 + 1e-6);
+      EXPECT_GE(row[i].height_m, 0.85 * 1.0 - 1e-6);
+      EXPECT_LE(row[i].height_m, 1.1 * 1.0 + 1e-6);
+    }
+  }
+  // Driving on, the tree in front is the one whose trunk is nearest to the optical axis and the
+  // truth is about it.
+  p.speed_m_s = 1.0;
+  SceneRenderer moving(p);
+  for (std::uint64_t f : {5u, 9u, 23u}) {
+    moving.render(0, f, rgb, &g);
+    const double travel = moving.travel_mm(f);
+    const auto near = moving.row_trees(travel - 3000, travel + 3000);
+    const RowTree *best = &near.front();
+    for (const auto &t : near)
+      if (std::abs(t.x_m * 1000 - travel) < std::abs(best->x_m * 1000 - travel))
+        best = &t;
+    EXPECT_EQ(g.front_tree, best->index) << "frame " << f;
+    EXPECT_NEAR(g.lateral_offset_m, best->x_m - travel / 1000, 1e-9);
+    EXPECT_NEAR(g.canopy_width_m, best->width_m, 1e-9);
+    EXPECT_NEAR(g.canopy_height_m, best->height_m, 1e-9);
+  }
+}
+
+TEST(SceneOrchard, HedgerowCanopiesTouchOrOverlap)
+{
+  SceneRenderer r(row_scene(SceneKind::Hedgerow));
+  const auto row = r.row_trees(-20000, 20000);
+  ASSERT_GT(row.size(), 30u);
+  for (std::size_t i = 0; i + 1 < row.size(); ++i) {
+    const double gap = row[i + 1].start_m - row[i].end_m;
+    EXPECT_LE(gap, 1e-6);
+    EXPECT_GE(gap, -0.15 * 0.7 - 1e-6);
+  }
+  cv::Mat rgb;
+  GroundTruth g;
+  r.render(0, 0, rgb, &g);
+  EXPECT_GT(count_label(g, SurfaceLabel::RowLeaf), kVga.area() / 10);
+}
+
+TEST(SceneOrchard, TheBackRowStandsRowSpacingBehind)
+{
+  SceneParams p = row_scene(SceneKind::Orchard, 0.0);
+  p.row_spacing_mm = 3000;
+  SceneRenderer r(p);
+  cv::Mat rgb;
+  GroundTruth g;
+  int n = 0;
+  for (int view = 0; view < 2; ++view) {
+    r.render(view, 0, rgb, &g);
+    for (int y = 0; y < kVga.height; ++y)
+      for (int x = 0; x < kVga.width; ++x)
+        if (SurfaceLabel(g.labels.at<uchar>(y, x)) == SurfaceLabel::BackLeaf) {
+          const cv::Point3d X = hit_point(r, view, g, x, y);
+          const cv::Vec3d L = view == 0 ? cv::Vec3d(X) : to_left(r.calibration(), cv::Vec3d(X));
+          ASSERT_GE(L[2], 2000 + 3000 - 0.5 * 1.3 * 600 - 0.5);
+          ASSERT_LE(L[2], 2000 + 3000 + 0.5 * 1.3 * 600 + 0.5);
+          ++n;
+        }
+  }
+  EXPECT_GT(n, 1000);
+}
+
+TEST(SceneOrchard, BothViewsSeeTheSameGrass)
+{
+  // Stereo works on the grass: a ground point seen by the left view has the same colour where
+  // the right view sees it.
+  const SceneParams p = row_scene(SceneKind::Orchard, 0.0);
+  SceneRenderer r(p);
+  cv::Mat a, b;
+  GroundTruth ga, gb;
+  r.render(0, 0, a, &ga);
+  r.render(1, 0, b, &gb);
+  const StereoCalibration &c = r.calibration();
+  double sum = 0;
+  int n = 0;
+  for (int y = kVga.height / 2 + 40; y < kVga.height - 4; y += 7)
+    for (int x = 8; x < kVga.width - 8; x += 7) {
+      if (SurfaceLabel(ga.labels.at<uchar>(y, x)) != SurfaceLabel::Ground)
+        continue;
+      const cv::Vec3d R = to_right(c, cv::Vec3d(hit_point(r, 0, ga, x, y)));
+      const cv::Point2d q = project(cv::Point3d(R), c.M2, c.D2);
+      const int u = int(std::lround(q.x)), v = int(std::lround(q.y));
+      if (u < 1 || v < 1 || u >= kVga.width - 1 || v >= kVga.height - 1 ||
+          SurfaceLabel(gb.labels.at<uchar>(v, u)) != SurfaceLabel::Ground)
+        continue;
+      const cv::Vec3f pa = a.at<cv::Vec3b>(y, x), pb = bilinear(b, q.x, q.y);
+      sum += cv::norm(pa - pb);
+      ++n;
+    }
+  ASSERT_GT(n, 500);
+  std::printf("grass: mean colour difference between the views %.2f levels over %d points\n",
+              sum / n, n);
+  EXPECT_LT(sum / n, 12.0);
+}
+
+TEST(SceneOrchard, LabFillsTheRowFieldsWithTheOneTree)
+{
+  SceneRenderer r(vga());
+  cv::Mat rgb;
+  GroundTruth g;
+  r.render(0, 0, rgb, &g);
+  EXPECT_EQ(g.front_tree, 0);
+  EXPECT_EQ(count_label(g, SurfaceLabel::RowLeaf) + count_label(g, SurfaceLabel::BackLeaf), 0);
+  ASSERT_EQ(g.row_points_mm.size(), g.canopy_points_mm.size());
+  EXPECT_EQ(cv::countNonZero(g.row_mask != g.canopy_mask), 0);
+  for (int y = 0; y < kVga.height; ++y)
+    for (int x = 0; x < kVga.width; ++x) {
+      const auto l = SurfaceLabel(g.labels.at<uchar>(y, x));
+      const bool tree = l == SurfaceLabel::Leaf || l == SurfaceLabel::Trunk;
+      ASSERT_EQ(g.tree_index.at<std::int16_t>(y, x), tree ? 0 : kNoTree);
+    }
+  const auto row = r.row_trees(-100, 100);
+  ASSERT_EQ(row.size(), 1u);
+  EXPECT_EQ(row[0].index, 0);
+  EXPECT_NEAR(row[0].width_m, g.canopy_width_m, 1e-12);
 }
