@@ -2,6 +2,7 @@
 
 #include "treestereo/features.hpp"
 
+#include <algorithm>
 #include <cstring>
 
 GST_DEBUG_CATEGORY_STATIC(treestereo_common_debug);
@@ -221,9 +222,10 @@ MappedSilhouette::~MappedSilhouette()
   }
 }
 
-void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out)
+void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out, GstTreeStereoCanopyMode mode)
 {
   gst_tree_stereo_metrics_clear(out);
+  out->canopy_mode = guint(mode);
   out->tree_present = m.tree_present;
   if (!m.tree_present)
     return; // all zero: never a value that means nothing
@@ -243,6 +245,7 @@ void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out)
                        (m.clipped.right ? GST_TREE_STEREO_CLIPPED_RIGHT : 0));
   out->n_points = guint(m.points);
   out->n_matches = guint(m.matches);
+  out->confidence = m.confidence;
   gst_tree_stereo_metrics_set_n_bands(out, guint(m.bands.size()));
   for (std::size_t i = 0; i < m.bands.size(); i++) {
     const Band &b = m.bands[i];
@@ -256,7 +259,38 @@ void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out)
     o.right_m = b.right_m;
     o.width_m = b.width_m;
     o.depth_m = b.depth_m;
+    o.fill = b.fill;
   }
+}
+
+GstTreeStereoCanopyMode canopy_mode_to_gst(CanopyMode mode)
+{
+  return mode == CanopyMode::Row ? GST_TREE_STEREO_CANOPY_ROW : GST_TREE_STEREO_CANOPY_TREE;
+}
+
+GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, CanopyMode mode)
+{
+  GstTreeStereoCanopyMeta *meta = gst_buffer_add_tree_stereo_canopy_meta(buf, canopy_mode_to_gst(mode));
+  if (!meta)
+    return nullptr;
+  Silhouette s = r.silhouette;
+  s.present = r.present && s.present;
+  silhouette_to_view(s, &meta->view);
+  constexpr double kMmToM = 1e-3;
+  meta->near_m = r.near_mm * kMmToM;
+  meta->far_m = r.far_mm * kMmToM;
+  meta->zone_from_data = r.zone_from_data;
+  meta->ground_found = r.ground.found;
+  for (int i = 0; i < 3; i++)
+    meta->ground_normal[i] = r.ground.normal[i];
+  meta->ground_d_m = r.ground.d * kMmToM;
+  meta->n_segments = guint(std::max(0, r.n_segments));
+  meta->left_m = r.left_mm * kMmToM;
+  meta->right_m = r.right_mm * kMmToM;
+  meta->n_points = guint(r.classes.size());
+  meta->n_canopy_points = guint(r.n_canopy_points);
+  meta->n_seam_pixels = guint(r.n_seam_pixels);
+  return meta;
 }
 
 static GstBufferPool *configured_pool(GstBufferPool *pool, GstCaps *caps, guint size, guint min,
@@ -322,6 +356,7 @@ TreeMetrics metrics_from_meta(const GstTreeStereoMetrics *m)
   t.clipped.right = (m->clipped & GST_TREE_STEREO_CLIPPED_RIGHT) != 0;
   t.points = m->n_points;
   t.matches = m->n_matches;
+  t.confidence = m->confidence;
   for (guint i = 0; m->bands && i < m->n_bands; i++) {
     const GstTreeStereoBand &b = m->bands[i];
     Band o;
@@ -332,6 +367,7 @@ TreeMetrics metrics_from_meta(const GstTreeStereoMetrics *m)
     o.right_m = b.right_m;
     o.width_m = b.width_m;
     o.depth_m = b.depth_m;
+    o.fill = b.fill;
     t.bands.push_back(o);
   }
   return t;
@@ -346,6 +382,25 @@ void report_exception(GstElement *element, const std::exception &e)
 {
   ensure_debug_category();
   GST_ELEMENT_ERROR(element, STREAM, FAILED, ("%s", e.what()), ("%s", e.what()));
+}
+
+std::vector<StereoMatch> matches_from_meta(const GstTreeStereoMatchesMeta *meta)
+{
+  std::vector<StereoMatch> out(meta->n_matches);
+  for (guint i = 0; i < meta->n_matches; i++) {
+    const GstTreeStereoMatch &m = meta->matches[i];
+    out[i] = {m.xl, m.yl, m.xr, m.yr, m.score};
+  }
+  return out;
+}
+
+std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &points)
+{
+  std::vector<GstTreeStereoPoint> out(points.size());
+  for (std::size_t i = 0; i < points.size(); i++)
+    out[i] = {points[i].x, points[i].y, points[i].z, points[i].match_index,
+              points[i].valid ? TRUE : FALSE};
+  return out;
 }
 
 } // namespace treestereo::gst

@@ -8,11 +8,13 @@
 
 #include <opencv2/core.hpp>
 
+#include "treestereo/canopy.hpp"
 #include "treestereo/metrics.hpp"
 #include "treestereo/types.hpp"
 
 #include <exception>
 #include <string>
+#include <vector>
 
 namespace treestereo::gst {
 
@@ -67,6 +69,10 @@ void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *meta);
 /* A copy of @m in a new GstBuffer, rows packed (stride = cols * elemSize). */
 GstBuffer *buffer_from_mat(const cv::Mat &m);
 
+/* The matches of siftmatch's meta as lib's matches, and lib's points as the points meta's. */
+std::vector<StereoMatch> matches_from_meta(const GstTreeStereoMatchesMeta *meta);
+std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &points);
+
 /* Silhouette (lib/) -> vegetation view of the meta. Without @mask_buffer the mask is copied into
  * a new GstBuffer. With it, s.mask must already wrap @mask_buffer's memory (the caller let lib/
  * write into the mapped buffer, row stride s.mask.step): the buffer is attached as it is, no
@@ -92,15 +98,25 @@ private:
   Silhouette silhouette_;
 };
 
-/* lib/'s tree metrics -> the meta/message figures (@out is cleared first; metres as in lib). */
-void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out);
+/* lib/'s tree metrics -> the meta/message figures (@out is cleared first; metres as in lib).
+ * @mode: what the measured silhouette was (the canopy meta's mode, or colour without one). */
+void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out,
+                    GstTreeStereoCanopyMode mode = GST_TREE_STEREO_CANOPY_COLOUR);
+
+/* lib/'s canopy mode -> the meta's. */
+GstTreeStereoCanopyMode canopy_mode_to_gst(CanopyMode mode);
+
+/* Attaches lib/'s 3D canopy decision as a GstTreeStereoCanopyMeta: the silhouette (its mask
+ * copied into a new GstBuffer) as the left view, the zone and the ground in metres, the counts.
+ * r.present false gives a view with present FALSE (no canopy in the zone). */
+GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, CanopyMode mode);
 
 /* decide_allocation for an element that produces whole video frames of the query's caps: keeps
  * downstream's pool when it takes our config, else a GstVideoBufferPool, sized for a frame. */
 bool decide_video_allocation(GstElement *element, GstQuery *query);
 
 /* Metrics of the meta -> lib/ metrics (bands too; depth_measured and extent_depth_m, which the
- * meta does not carry, stay false/0). */
+ * meta does not carry, stay false/0; canopy_mode is the meta's alone). */
 TreeMetrics metrics_from_meta(const GstTreeStereoMetrics *m);
 
 /* Posts an element message built by the meta library (call with no lock held). */

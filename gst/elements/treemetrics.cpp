@@ -20,7 +20,13 @@
  * inside the silhouette (stereodepth's #stereodepth:edge-band samples those parts densely).
  * Only points that project onto the silhouette count.
  *
- * When no canopy is found (the vegetation meta says none, no valid point falls on it) the
+ * The silhouette measured is the 3D canopy's when the buffer has a #GstTreeStereoCanopyMeta
+ * (stereodepth decided in depth which vegetation is the tree or row in front: in an orchard the
+ * grass, the next row and the neighbours are green too), else the left view of exgsegment's
+ * #GstTreeStereoVegetationMeta (canopy mode `colour`). A canopy meta whose view is not present
+ * (nothing in the spray zone) gives `tree-present=false`, whatever colour found.
+ *
+ * When no canopy is found (the canopy or vegetation meta says none, no valid point falls on it) the
  * message carries `tree-present=false` and no other figure, and the meta's figures are all 0:
  * never NaN, never the previous frame's values. A missing vegetation or points meta (exgsegment
  * or stereodepth not upstream) gives the same, with one warning per run; a missing geometry meta
@@ -36,7 +42,9 @@
  * With #treemetrics:post-messages, an element message named `treemetrics` per buffer:
  *
  * - `timestamp`, `stream-time`, `running-time`: #guint64, ns, of the buffer
- * - `tree-present`: #gboolean; when FALSE none of the fields below is present
+ * - `tree-present`: #gboolean; when FALSE none of the fields below but `canopy-mode` is present
+ * - `canopy-mode`: string, what was measured: `colour` (the colour silhouette, no canopy meta
+ *   upstream), `tree` or `row` (the canopy meta's 3D canopy)
  * - `distance`: #gdouble, m, median Z of the canopy's 3D points
  * - `height`, `width`: #gdouble, m, the canopy's real vertical and horizontal extent
  * - `thickness`: #gdouble, m, 95th minus 5th percentile of the points' Z
@@ -50,11 +58,16 @@
  * - `points`: #guint, canopy points the figures rest on
  * - `matches`: #guint, points (correspondences) stereodepth delivered: SIFT matches and, with
  *   stereodepth's densify, its grid points
+ * - `confidence`: #gdouble, 0..1, how much of the silhouette has depth support: the share of its
+ *   pixels within 1.5 % of the view's width of a point the figures rest on
  * - `bands`: #GstValueArray of #GstStructure `band`, #treemetrics:bands of them from the canopy's
  *   top to its bottom, each with `present` (#gboolean), `top`, `bottom` (#gdouble, m, Y),
  *   `left`, `right` (#gdouble, m, X of the canopy's edges in the band), `width` (#gdouble, m)
- *   and `depth` (#gdouble, m, nearest-face depth: the 5th percentile of the band's points' Z,
- *   interpolated from the neighbouring bands when the band has fewer than 3 points)
+ *   `depth` (#gdouble, m, nearest-face depth: the 5th percentile of the band's points' Z,
+ *   interpolated from the neighbouring bands when the band has fewer than 3 points) and `fill`
+ *   (#gdouble, 0..1, the share of the band's left-right extent covered by canopy: of the image
+ *   columns between its leftmost and rightmost canopy pixel, those with canopy in one of its
+ *   rows)
  * - `smoothed-tree-present` and every field above prefixed `smoothed-`: the smoothed figures
  *   (equal to the raw ones with smoothing=0)
  *
@@ -232,26 +245,32 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
   }
   const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
   const GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(buf);
-  if (!veg || !pm)
-    warn_missing(self, veg != nullptr, pm != nullptr);
+  // The 3D canopy (stereodepth), when decided, is what is measured: colour alone takes the
+  // grass, the next row and the neighbours too.
+  const GstTreeStereoCanopyMeta *canopy = gst_buffer_get_tree_stereo_canopy_meta(buf);
+  const GstTreeStereoVegetationView *silhouette =
+      canopy ? &canopy->view : veg ? &veg->views[LEFT] : nullptr;
+  const GstTreeStereoCanopyMode mode = canopy ? canopy->mode : GST_TREE_STEREO_CANOPY_COLOUR;
+  if (!silhouette || !pm)
+    warn_missing(self, silhouette != nullptr, pm != nullptr);
 
   GstMetrics raw, smoothed;
   const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
-    TreeMetrics m; // no tree unless both metas are there
-    if (veg && pm) {
+    TreeMetrics m; // no tree unless a silhouette and the points are there
+    if (silhouette && pm) {
       MetricsParams p;
       p.n_bands = s.bands;
       p.extent_depth = s.extent;
       p.round_limbs = s.round_limbs;
       p.extreme_points = int(s.extreme_points);
-      const treestereo::gst::MappedSilhouette sil(&veg->views[LEFT]);
+      const treestereo::gst::MappedSilhouette sil(silhouette);
       m = compute_tree_metrics(sil.get(), points_of(pm), treestereo::gst::geometry_from_meta(gm),
                                p);
     }
     if (st->smoother.alpha() != s.smoothing)
       st->smoother = MetricsSmoother(s.smoothing);
-    treestereo::gst::metrics_to_gst(m, &raw.m);
-    treestereo::gst::metrics_to_gst(st->smoother.update(m), &smoothed.m);
+    treestereo::gst::metrics_to_gst(m, &raw.m, mode);
+    treestereo::gst::metrics_to_gst(st->smoother.update(m), &smoothed.m, mode);
     return true;
   });
   if (!ok)
@@ -387,7 +406,8 @@ static void gst_tree_metrics_class_init(GstTreeMetricsClass *klass)
   gst_element_class_set_static_metadata(
       element_class, "Tree metrics", "Filter/Analyzer/Video",
       "Measures the tree canopy (distance, height, width, thickness, area, perimeter, "
-      "complexity, centroid, height bands) from its silhouette and 3D points",
+      "complexity, centroid, height bands, confidence) from its silhouette (the 3D canopy's "
+      "when decided) and 3D points",
       "treestereo developers");
   gst_type_mark_as_plugin_api(GST_TYPE_TREE_METRICS_EXTENT, GstPluginAPIFlags(0));
 

@@ -2,6 +2,7 @@
  * test_metrics does) through the element: every figure against the sphere's truth; the band
  * profile of a stepped flat canopy, exact; smoothing; no-tree frames; errors. */
 /* C++ and OpenCV headers first: gstcheck.h defines a macro named fail */
+#include "treestereo/canopy.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/imgproc.hpp>
@@ -208,10 +209,13 @@ void expect_equal(const GstTreeStereoMetrics &a, const GstTreeStereoMetrics &b)
   fail_unless_equals_int(a.clipped, b.clipped);
   fail_unless_equals_int(a.n_points, b.n_points);
   fail_unless_equals_int(a.n_matches, b.n_matches);
+  fail_unless_equals_float(a.confidence, b.confidence);
+  fail_unless_equals_int(a.canopy_mode, b.canopy_mode);
   fail_unless_equals_int(a.n_bands, b.n_bands);
   for (guint i = 0; i < a.n_bands; i++) {
     const GstTreeStereoBand &x = a.bands[i], &y = b.bands[i];
     fail_unless_equals_int(x.present, y.present);
+    fail_unless_equals_float(x.fill, y.fill);
     fail_unless_equals_float(x.top_m, y.top_m);
     fail_unless_equals_float(x.bottom_m, y.bottom_m);
     fail_unless_equals_float(x.left_m, y.left_m);
@@ -226,7 +230,8 @@ void expect_no_tree_meta(const GstTreeStereoMetrics &m)
 {
   fail_if(m.tree_present);
   for (double v : {m.distance_m, m.height_m, m.width_m, m.thickness_m, m.area_m2, m.perimeter_m,
-                   m.complexity, m.centroid_m[0], m.centroid_m[1], m.centroid_m[2]})
+                   m.complexity, m.centroid_m[0], m.centroid_m[1], m.centroid_m[2],
+                   m.confidence})
     fail_unless(v == 0.0, "a no-tree figure is %f", v);
   fail_unless_equals_int(m.clipped, 0);
   fail_unless_equals_int(m.n_points, 0);
@@ -235,11 +240,14 @@ void expect_no_tree_meta(const GstTreeStereoMetrics &m)
   fail_unless(m.bands == nullptr);
 }
 
-/* The message of a no-tree frame: tree-present=false and the times, nothing else. */
+/* The message of a no-tree frame: tree-present=false, the canopy mode and the times, nothing
+ * else. */
 void expect_no_tree_message(const Message &m)
 {
-  const std::set<std::string> allowed = {"timestamp", "stream-time", "running-time",
-                                         "tree-present", "smoothed-tree-present"};
+  const std::set<std::string> allowed = {"timestamp",    "stream-time",
+                                         "running-time", "tree-present",
+                                         "canopy-mode",  "smoothed-tree-present",
+                                         "smoothed-canopy-mode"};
   for (int i = 0; i < gst_structure_n_fields(m.s); i++) {
     const std::string f = gst_structure_nth_field_name(m.s, guint(i));
     fail_unless(allowed.count(f) == 1, "no-tree message has field %s", f.c_str());
@@ -292,6 +300,9 @@ GST_START_TEST(test_sphere_every_field_against_truth)
   fail_unless_equals_int(m.clipped, GST_TREE_STEREO_CLIPPED_NONE);
   fail_unless_equals_int(m.n_points, s.points.size());
   fail_unless_equals_int(m.n_matches, s.points.size());
+  /* no canopy meta: the colour silhouette was measured; points every 4 px support all of it */
+  fail_unless_equals_int(m.canopy_mode, GST_TREE_STEREO_CANOPY_COLOUR);
+  within(m.confidence, 1.0, 1e-12);
 
   /* 4 bands top to bottom: contiguous, from the sphere's top (-1.2 m) to its bottom (0.8 m);
    * the two middle bands hold the equator: full width, edges at Xc -+ R */
@@ -341,6 +352,7 @@ GST_START_TEST(test_sphere_every_field_against_truth)
   fail_unless_equals_uint64(msg.times.timestamp, 2 * GST_SECOND);
   fail_unless_equals_uint64(msg.times.running_time, 2 * GST_SECOND);
   fail_unless_equals_uint64(msg.times.stream_time, 2 * GST_SECOND);
+  fail_unless_equals_string(gst_structure_get_string(msg.s, "canopy-mode"), "colour");
   gst_buffer_unref(out);
   rig_free(r);
 }
@@ -447,6 +459,7 @@ GST_START_TEST(test_band_profile_of_a_stepped_canopy)
     within(b.left_m, (kXc - kWidths[i] / 2) * 1e-3, 1e-6);
     within(b.right_m, (kXc + kWidths[i] / 2) * 1e-3, 1e-6);
     within(b.depth_m, kZ0 * 1e-3, 1e-6);
+    within(b.fill, 1.0, 0.0); /* each band is one full step */
   }
   Message msg;
   pop_message(r.bus, msg);
@@ -464,6 +477,154 @@ GST_START_TEST(test_band_profile_of_a_stepped_canopy)
     within(m7.bands[i].top_m, m7.bands[i - 1].bottom_m, 1e-9);
     fail_unless(m7.bands[i].width_m >= m7.bands[i - 1].width_m - 1e-9, "widths grow downwards");
   }
+  gst_buffer_unref(out);
+  rig_free(r);
+}
+GST_END_TEST;
+
+namespace {
+
+/* A flat card at kZ0 facing the camera: X in [x0, x1], Y in [y0, y1] (mm), without the columns
+ * X in (gap0, gap1) below gap_y. Edges chosen on pixel boundaries (2.5 mm a pixel at kZ0). */
+Caster card(double x0, double x1, double y0, double y1, double gap0 = 0, double gap1 = 0,
+            double gap_y = 1e9)
+{
+  return [=](double tx, double ty) -> std::optional<double> {
+    const double X = tx * kZ0, Y = ty * kZ0;
+    if (X < x0 || X > x1 || Y < y0 || Y > y1)
+      return std::nullopt;
+    if (Y > gap_y && X > gap0 && X < gap1)
+      return std::nullopt;
+    return kZ0;
+  };
+}
+
+/* stereodepth's canopy meta: the 3D canopy's mask as the left view (nullptr: none in the zone). */
+void add_canopy(GstBuffer *buf, const cv::Mat *mask, GstTreeStereoCanopyMode mode)
+{
+  GstTreeStereoCanopyMeta *c = gst_buffer_add_tree_stereo_canopy_meta(buf, mode);
+  c->near_m = 2.5;
+  c->far_m = 3.0;
+  c->zone_from_data = TRUE;
+  if (!mask)
+    return;
+  const cv::Rect box = cv::boundingRect(*mask);
+  c->view.present = TRUE;
+  c->view.area_px = cv::countNonZero(*mask);
+  c->view.bbox_x = box.x;
+  c->view.bbox_y = box.y;
+  c->view.bbox_width = box.width;
+  c->view.bbox_height = box.height;
+  c->view.n_regions = 1;
+  GstBuffer *m = gst_buffer_new_allocate(nullptr, gsize(mask->total()), nullptr);
+  gst_buffer_fill(m, 0, mask->data, mask->total());
+  gst_tree_stereo_vegetation_view_set_mask(&c->view, m, W, H, W);
+  gst_buffer_unref(m);
+}
+
+} // namespace
+
+/* Colour finds a wide green wall (a row behind, the neighbours); depth kept a narrow tree of it.
+ * treemetrics measures the canopy meta's silhouette: the tree's 1.2 m, not the wall's 2.4 m.
+ * The tree's lower half has a gap of 10 % of its width (band fill 0.9), and the points cover
+ * only the left half of the tree (confidence about one half). */
+GST_START_TEST(test_canopy_meta_is_the_silhouette_measured)
+{
+  const Scene wall = cast(card(-1198.75, 1201.25, -798.75, 1.25), 1000);
+  const Scene tree = cast(card(-598.75, 601.25, -798.75, 1.25, -58.75, 61.25, -398.75), 1000);
+  /* points every 5 px on the wall's left, up to the tree's middle */
+  const Scene pts = cast(card(-1198.75, 1.25, -798.75, 1.25), 5);
+  const double tree_w = 1.2;
+  fail_unless_equals_int(cv::boundingRect(tree.mask).width, 480);
+
+  Rig r = rig_new("bands=2 extent-method=mid-depth");
+  /* without the canopy meta: the wall, in colour mode */
+  GstBuffer *out = gst_harness_push_and_pull(r.h, frame(&wall, &pts, 0));
+  const GstTreeStereoMetrics &c = gst_buffer_get_tree_stereo_metrics_meta(out)->metrics;
+  fail_unless(c.tree_present);
+  within(c.width_m, 2.4, 1e-6);
+  fail_unless_equals_int(c.canopy_mode, GST_TREE_STEREO_CANOPY_COLOUR);
+  gst_buffer_unref(out);
+  Message colour;
+  pop_message(r.bus, colour);
+  fail_unless_equals_int(colour.raw.canopy_mode, GST_TREE_STEREO_CANOPY_COLOUR);
+
+  /* with it: the tree */
+  GstBuffer *in = frame(&wall, &pts, GST_SECOND);
+  add_canopy(in, &tree.mask, GST_TREE_STEREO_CANOPY_TREE);
+  out = gst_harness_push_and_pull(r.h, in);
+  const GstTreeStereoMetricsMeta *meta = gst_buffer_get_tree_stereo_metrics_meta(out);
+  const GstTreeStereoMetrics &m = meta->metrics;
+  fail_unless(m.tree_present);
+  fail_unless_equals_int(m.canopy_mode, GST_TREE_STEREO_CANOPY_TREE);
+  fail_unless_equals_int(meta->smoothed.canopy_mode, GST_TREE_STEREO_CANOPY_TREE);
+  within(m.width_m, tree_w, 1e-6);
+  within(m.height_m, 0.8, 1e-6);
+  fail_unless_equals_int(m.n_bands, 2);
+  within(m.bands[0].fill, 1.0, 0.0);
+  within(m.bands[1].fill, 0.9, 1e-12);
+  within(m.bands[1].width_m, tree_w, 1e-6);
+  /* confidence by its definition: the share of the tree's pixels within 1.5 % of the view's
+   * width (19.4 px) of a point on the tree (within a pixel of it) */
+  cv::Mat near_tree;
+  cv::dilate(tree.mask, near_tree, cv::Mat::ones(3, 3, CV_8U));
+  std::vector<cv::Point2f> px;
+  for (std::size_t k = 0; k < pts.u.size(); k++)
+    if (near_tree.at<uchar>(int(pts.v[k]), int(pts.u[k])))
+      px.emplace_back(float(pts.u[k]), float(pts.v[k]));
+  const double want = treestereo::depth_support(tree.mask, px, 0.015 * W);
+  within(m.confidence, want, 1e-9);
+  /* about half: the left half, the 19 px the support reaches beyond the points, less the gap's
+   * pixels (most of them in the supported half): 0.5175 */
+  within(m.confidence, 0.5175, 0.01);
+  Message msg;
+  pop_message(r.bus, msg);
+  expect_equal(msg.raw, m);
+  expect_equal(msg.smoothed, meta->smoothed);
+  fail_unless_equals_string(gst_structure_get_string(msg.s, "canopy-mode"), "tree");
+  double conf = 0;
+  fail_unless(gst_structure_get_double(msg.s, "confidence", &conf));
+  within(conf, want, 1e-9);
+  gst_buffer_unref(out);
+
+  /* row mode: the same measurement, the mode says so */
+  in = frame(&wall, &pts, 2 * GST_SECOND);
+  add_canopy(in, &tree.mask, GST_TREE_STEREO_CANOPY_ROW);
+  out = gst_harness_push_and_pull(r.h, in);
+  fail_unless_equals_int(gst_buffer_get_tree_stereo_metrics_meta(out)->metrics.canopy_mode,
+                         GST_TREE_STEREO_CANOPY_ROW);
+  gst_buffer_unref(out);
+  Message row;
+  pop_message(r.bus, row);
+  fail_unless_equals_string(gst_structure_get_string(row.s, "canopy-mode"), "row");
+  rig_free(r);
+}
+GST_END_TEST;
+
+/* Nothing in the spray zone: the canopy meta's view is not present, so there is no tree, though
+ * colour found a wall and the points are on it. */
+GST_START_TEST(test_canopy_meta_without_canopy_means_no_tree)
+{
+  const Scene wall = cast(card(-1198.75, 1201.25, -798.75, 1.25), 5);
+  Rig r = rig_new("smoothing=0.5");
+  GstBuffer *out = gst_harness_push_and_pull(r.h, frame(&wall, &wall, 0));
+  fail_unless(gst_buffer_get_tree_stereo_metrics_meta(out)->metrics.tree_present);
+  gst_buffer_unref(out);
+  Message first;
+  pop_message(r.bus, first);
+
+  GstBuffer *in = frame(&wall, &wall, GST_SECOND);
+  add_canopy(in, nullptr, GST_TREE_STEREO_CANOPY_TREE);
+  out = gst_harness_push_and_pull(r.h, in);
+  const GstTreeStereoMetricsMeta *meta = gst_buffer_get_tree_stereo_metrics_meta(out);
+  expect_no_tree_meta(meta->metrics);
+  expect_no_tree_meta(meta->smoothed);
+  fail_unless_equals_int(meta->metrics.canopy_mode, GST_TREE_STEREO_CANOPY_TREE);
+  Message msg;
+  pop_message(r.bus, msg);
+  expect_no_tree_message(msg);
+  fail_unless_equals_string(gst_structure_get_string(msg.s, "canopy-mode"), "tree");
+  fail_unless_equals_int(msg.raw.canopy_mode, GST_TREE_STEREO_CANOPY_TREE);
   gst_buffer_unref(out);
   rig_free(r);
 }
@@ -631,6 +792,8 @@ static Suite *treemetrics_suite(void)
   tcase_add_test(tc, test_round_limbs_property);
   tcase_add_test(tc, test_extreme_points_property);
   tcase_add_test(tc, test_band_profile_of_a_stepped_canopy);
+  tcase_add_test(tc, test_canopy_meta_is_the_silhouette_measured);
+  tcase_add_test(tc, test_canopy_meta_without_canopy_means_no_tree);
   tcase_add_test(tc, test_smoothing_converges_and_resets_without_a_tree);
   tcase_add_test(tc, test_no_tree_cases);
   tcase_add_test(tc, test_missing_geometry_is_an_error);
