@@ -11,6 +11,12 @@
  * read differently, "&gt;=" before an extent that touches the image border, "no tree" when the
  * tree is absent) and the legend of the depth colours.
  *
+ * When stereodepth decided the canopy in 3D (#GstTreeStereoCanopyMeta), its silhouette is the
+ * canopy drawn in the left view (contour and box), and the vegetation colour found that is not
+ * canopy (the grass, the next row, the neighbours) is tinted a neutral grey-blue, so a person
+ * sees what depth rejected (switched with #treeoverlay:draw-contour). The text panel also shows
+ * the confidence of the figures ("conf 0.93": the share of the silhouette with depth support).
+ *
  * Each layer can be switched off. A missing meta only leaves its layer out: a frame without
  * any treestereo meta passes through unchanged (no "no tree" panel: nothing measured it).
  *
@@ -259,9 +265,21 @@ static OverlayScene scene_from_metas(GstBuffer *buf, int n_views)
 {
   OverlayScene scene;
   scene.n_views = n_views;
-  if (const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf))
+  const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
+  if (veg)
     for (guint v = 0; v < MIN(veg->n_views, 2u); v++)
       scene.views[v] = treestereo::gst::silhouette_from_view(&veg->views[v], nullptr);
+  /* the 3D canopy, when decided, is the canopy: its outline in the left view, and the
+   * vegetation it left out tinted so a person sees what depth rejected */
+  if (const GstTreeStereoCanopyMeta *canopy = gst_buffer_get_tree_stereo_canopy_meta(buf)) {
+    scene.views[LEFT] = treestereo::gst::silhouette_from_view(&canopy->view, nullptr);
+    if (veg) {
+      const treestereo::gst::MappedSilhouette vegetation(&veg->views[LEFT]);
+      const treestereo::gst::MappedSilhouette tree(&canopy->view);
+      if (!vegetation.get().mask.empty())
+        scene.rejected = rejected_vegetation(vegetation.get().mask, tree.get().mask);
+    }
+  }
 
   if (const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf)) {
     scene.matches.reserve(mm->n_matches);
@@ -284,7 +302,7 @@ static OverlayScene scene_from_metas(GstBuffer *buf, int n_views)
   if (const GstTreeStereoMetricsMeta *mt = gst_buffer_get_tree_stereo_metrics_meta(buf)) {
     const TreeMetrics raw = treestereo::gst::metrics_from_meta(&mt->metrics);
     const TreeMetrics smoothed = treestereo::gst::metrics_from_meta(&mt->smoothed);
-    scene.text = metrics_text(raw, &smoothed);
+    scene.text = metrics_text(raw, &smoothed, true);
     if (const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf)) {
       scene.geometry = treestereo::gst::geometry_from_meta(gm);
       scene.bands = raw.bands;
@@ -331,7 +349,8 @@ static gboolean gst_tree_overlay_transform_meta(GstBaseTransform *trans, GstBuff
   if (api == GST_TREE_STEREO_GEOMETRY_META_API_TYPE ||
       api == GST_TREE_STEREO_VEGETATION_META_API_TYPE ||
       api == GST_TREE_STEREO_MATCHES_META_API_TYPE || api == GST_TREE_STEREO_POINTS_META_API_TYPE ||
-      api == GST_TREE_STEREO_METRICS_META_API_TYPE || api == GST_TREE_STEREO_TRUTH_META_API_TYPE)
+      api == GST_TREE_STEREO_METRICS_META_API_TYPE || api == GST_TREE_STEREO_TRUTH_META_API_TYPE ||
+      api == GST_TREE_STEREO_CANOPY_META_API_TYPE)
     return TRUE;
   return GST_BASE_TRANSFORM_CLASS(gst_tree_overlay_parent_class)
       ->transform_meta(trans, outbuf, meta, inbuf);
@@ -348,7 +367,7 @@ static void gst_tree_overlay_set_property(GObject *object, guint prop_id, const 
     s.views = GstTreeOverlayViews(g_value_get_enum(value));
     break;
   case PROP_DRAW_CONTOUR:
-    s.style.contour = g_value_get_boolean(value);
+    s.style.contour = s.style.rejected = g_value_get_boolean(value);
     break;
   case PROP_DRAW_BOX:
     s.style.box = g_value_get_boolean(value);
@@ -460,7 +479,8 @@ static void gst_tree_overlay_class_init(GstTreeOverlayClass *klass)
                         GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
                                     GST_PARAM_MUTABLE_READY)));
   install_layer(gobject_class, PROP_DRAW_CONTOUR, "draw-contour", "Draw contour",
-                "Draw the canopy's outer contour (yellow)");
+                "Draw the canopy's outer contour (yellow) and, with a 3D canopy upstream, tint "
+                "the vegetation depth rejected (grey-blue)");
   install_layer(gobject_class, PROP_DRAW_BOX, "draw-box", "Draw box",
                 "Draw the canopy's bounding box (cyan)");
   install_layer(gobject_class, PROP_DRAW_MATCHES, "draw-matches", "Draw matches",

@@ -79,6 +79,30 @@ struct Painter {
   }
 };
 
+void draw_rejected(const Painter &p, const cv::Mat &rejected)
+{
+  cv::Mat left = p.view(LEFT);
+  if (rejected.size() != left.size() || rejected.type() != CV_8UC1)
+    throw std::runtime_error("overlay: the rejected-vegetation mask must be CV_8U of the view "
+                             "size " + std::to_string(left.cols) + "x" +
+                             std::to_string(left.rows) + ", got " +
+                             std::to_string(rejected.cols) + "x" + std::to_string(rejected.rows));
+  const int n = p.order.channels;
+  const int ch[3] = {p.order.r, p.order.g, p.order.b};
+  const int tint[3] = {kRejectedColor.r, kRejectedColor.g, kRejectedColor.b};
+  for (int y = 0; y < left.rows; ++y) {
+    const uchar *m = rejected.ptr<uchar>(y);
+    uchar *px = left.ptr<uchar>(y);
+    for (int x = 0; x < left.cols; ++x) {
+      if (!m[x])
+        continue;
+      uchar *q = px + std::size_t(x) * std::size_t(n);
+      for (int c = 0; c < 3; ++c)
+        q[ch[c]] = uchar((q[ch[c]] + tint[c] + 1) / 2);
+    }
+  }
+}
+
 void draw_silhouettes(const Painter &p, const OverlayScene &scene, const OverlayStyle &style)
 {
   for (int v = 0; v < scene.n_views; ++v) {
@@ -256,7 +280,19 @@ BandSegment band_segment(const Band &band, const StereoGeometry &g, double depth
   return s;
 }
 
-std::vector<std::string> metrics_text(const TreeMetrics &m, const TreeMetrics *smoothed)
+cv::Mat rejected_vegetation(const cv::Mat &vegetation, const cv::Mat &canopy)
+{
+  CV_Assert(vegetation.type() == CV_8UC1);
+  cv::Mat out = vegetation > 0;
+  if (canopy.empty())
+    return out;
+  CV_Assert(canopy.type() == CV_8UC1 && canopy.size() == vegetation.size());
+  out.setTo(0, canopy);
+  return out;
+}
+
+std::vector<std::string> metrics_text(const TreeMetrics &m, const TreeMetrics *smoothed,
+                                      bool confidence)
 {
   if (!m.tree_present)
     return {"no tree"};
@@ -269,6 +305,11 @@ std::vector<std::string> metrics_text(const TreeMetrics &m, const TreeMetrics *s
                               m.clipped.left || m.clipped.right));
   lines.push_back(figure_line("thickness", m.thickness_m, sm ? &sm->thickness_m : nullptr, false));
   lines.push_back("points " + std::to_string(m.points) + ", matches " + std::to_string(m.matches));
+  if (confidence) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "conf %.2f", m.confidence);
+    lines.push_back(buf);
+  }
   return lines;
 }
 
@@ -293,6 +334,8 @@ void draw_overlay(cv::Mat &image, const ChannelOrder &order, const OverlayScene 
   const int view_width = image.cols / scene.n_views;
   const Painter p{image, order, overlay_scale({view_width, image.rows}), view_width,
                   depth_range(scene, style)};
+  if (style.rejected && !scene.rejected.empty())
+    draw_rejected(p, scene.rejected);
   if (style.bands)
     draw_bands(p, scene);
   if (style.box || style.contour)

@@ -167,7 +167,73 @@ GstBuffer *draw_scene(const char *format)
   return out;
 }
 
+/* A GRAY8 mask of one view: 255 inside [x0, x1) x [y0, y1). */
+GstBuffer *rect_mask(int x0, int x1, int y0, int y1)
+{
+  std::vector<guint8> m(size_t(VW) * H, 0);
+  for (int y = y0; y < y1; y++)
+    memset(&m[size_t(y) * VW + size_t(x0)], 255, size_t(x1 - x0));
+  GstBuffer *b = gst_buffer_new_allocate(nullptr, m.size(), nullptr);
+  gst_buffer_fill(b, 0, m.data(), m.size());
+  return b;
+}
+
 } // namespace
+
+/* stereodepth kept the left half of the green square as the canopy: the right half is
+ * vegetation depth rejected and is tinted grey-blue; the canopy's pixels are not; the canopy's
+ * contour is drawn in yellow. */
+GST_START_TEST(test_rejected_vegetation_is_tinted)
+{
+  const Rgb kTinted = {guint8((kBackground.r + 110 + 1) / 2), guint8((kBackground.g + 130 + 1) / 2),
+                       guint8((kBackground.b + 170 + 1) / 2)};
+  for (const char *format : {"RGB", "BGRx"}) {
+    const bool bgrx = g_str_equal(format, "BGRx");
+    GstHarness *h = harness("treeoverlay draw-box=false draw-matches=false draw-bands=false "
+                            "draw-text=false",
+                            format, 2 * VW, true);
+    Frame f(2 * VW, format);
+    f.fill(kBackground);
+    GstBuffer *in = f.buffer();
+    GstTreeStereoVegetationMeta *veg = gst_buffer_add_tree_stereo_vegetation_meta(in, 2);
+    veg->views[0].present = TRUE;
+    GstBuffer *vm = rect_mask(200, 280, 110, 190);
+    gst_tree_stereo_vegetation_view_set_mask(&veg->views[0], vm, VW, H, VW);
+    gst_buffer_unref(vm);
+    GstTreeStereoCanopyMeta *c =
+        gst_buffer_add_tree_stereo_canopy_meta(in, GST_TREE_STEREO_CANOPY_TREE);
+    c->view.present = TRUE;
+    const gint32 xy[8] = {200, 110, 239, 110, 239, 189, 200, 189};
+    gst_tree_stereo_vegetation_view_set_contour(&c->view, xy, 4);
+    GstBuffer *cm = rect_mask(200, 240, 110, 190);
+    gst_tree_stereo_vegetation_view_set_mask(&c->view, cm, VW, H, VW);
+    gst_buffer_unref(cm);
+
+    GstBuffer *out = gst_harness_push_and_pull(h, in);
+    assert_rgb(out, 2 * VW, bgrx, 260, 150, kTinted);    /* rejected vegetation */
+    assert_rgb(out, 2 * VW, bgrx, 279, 189, kTinted);
+    assert_rgb(out, 2 * VW, bgrx, 220, 150, kBackground); /* canopy */
+    assert_rgb(out, 2 * VW, bgrx, 239, 150, kYellow);     /* the canopy's contour */
+    assert_rgb(out, 2 * VW, bgrx, 290, 150, kBackground); /* no vegetation */
+    assert_rgb(out, 2 * VW, bgrx, VW + 260, 150, kBackground); /* the right view: untouched */
+    gst_buffer_unref(out);
+
+    /* draw-contour=false switches the tint off too */
+    gst_harness_set(h, "treeoverlay", "draw-contour", FALSE, NULL);
+    in = f.buffer();
+    gst_buffer_add_tree_stereo_canopy_meta(in, GST_TREE_STEREO_CANOPY_TREE);
+    veg = gst_buffer_add_tree_stereo_vegetation_meta(in, 2);
+    veg->views[0].present = TRUE;
+    vm = rect_mask(200, 280, 110, 190);
+    gst_tree_stereo_vegetation_view_set_mask(&veg->views[0], vm, VW, H, VW);
+    gst_buffer_unref(vm);
+    out = gst_harness_push_and_pull(h, in);
+    assert_rgb(out, 2 * VW, bgrx, 260, 150, kBackground);
+    gst_buffer_unref(out);
+    gst_harness_teardown(h);
+  }
+}
+GST_END_TEST;
 
 GST_START_TEST(test_draws_items_where_the_metas_say)
 {
@@ -383,6 +449,7 @@ static Suite *treeoverlay_suite(void)
   tcase_add_test(tc, test_mono_input_drawn_in_place_with_views_left);
   tcase_add_test(tc, test_bgrx_and_rgb_agree);
   tcase_add_test(tc, test_layers_switch_off);
+  tcase_add_test(tc, test_rejected_vegetation_is_tinted);
   return s;
 }
 

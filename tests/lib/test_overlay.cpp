@@ -420,6 +420,43 @@ TEST(OverlayText, MetricsLines)
   m.clipped.right = true;
   EXPECT_EQ(metrics_text(m, nullptr)[2], "width >= 0.95 m");
   EXPECT_EQ(metrics_text(m, nullptr)[1], "height 1.20 m");
+  m.confidence = 0.934;
+  const std::vector<std::string> with = metrics_text(m, nullptr, true);
+  ASSERT_EQ(with.size(), 6u);
+  EXPECT_EQ(with[5], "conf 0.93");
+  EXPECT_EQ(metrics_text(TreeMetrics{}, nullptr, true), std::vector<std::string>{"no tree"});
+}
+
+TEST(OverlayDraw, RejectedVegetationIsTintedAndCanopyIsNot)
+{
+  cv::Mat veg = cv::Mat::zeros(40, 60, CV_8U), canopy = cv::Mat::zeros(40, 60, CV_8U);
+  veg(cv::Rect(10, 10, 40, 20)).setTo(255);
+  canopy(cv::Rect(10, 10, 20, 20)).setTo(255);
+  const cv::Mat rejected = rejected_vegetation(veg, canopy);
+  EXPECT_EQ(cv::countNonZero(rejected), 20 * 20);
+  EXPECT_EQ(rejected.at<uchar>(15, 40), 255);
+  EXPECT_EQ(rejected.at<uchar>(15, 20), 0);
+  EXPECT_EQ(cv::countNonZero(rejected_vegetation(veg, cv::Mat())), 40 * 20);
+
+  // a BGR side-by-side frame: the tint is the mean with kRejectedColor, in the left view only
+  cv::Mat image(40, 120, CV_8UC3, cv::Scalar(60, 90, 40)); // B, G, R
+  const ChannelOrder bgr{2, 1, 0, 3};
+  OverlayScene scene;
+  scene.rejected = rejected;
+  draw_overlay(image, bgr, scene, OverlayStyle{});
+  const cv::Vec3b t = image.at<cv::Vec3b>(15, 40), c = image.at<cv::Vec3b>(15, 20);
+  EXPECT_EQ(t, cv::Vec3b((60 + kRejectedColor.b + 1) / 2, (90 + kRejectedColor.g + 1) / 2,
+                         (40 + kRejectedColor.r + 1) / 2));
+  EXPECT_EQ(c, cv::Vec3b(60, 90, 40));
+  EXPECT_EQ(image.at<cv::Vec3b>(15, 60 + 40), cv::Vec3b(60, 90, 40));
+  OverlayStyle off;
+  off.rejected = false;
+  cv::Mat plain(40, 120, CV_8UC3, cv::Scalar(60, 90, 40));
+  draw_overlay(plain, bgr, scene, off);
+  EXPECT_EQ(plain.at<cv::Vec3b>(15, 40), cv::Vec3b(60, 90, 40));
+  // a mask of another size is an error, not a guess
+  scene.rejected = cv::Mat::zeros(10, 10, CV_8U);
+  EXPECT_THROW(draw_overlay(image, bgr, scene, OverlayStyle{}), std::runtime_error);
 }
 
 TEST(OverlayDraw, RejectsImagesItCannotDrawOn)

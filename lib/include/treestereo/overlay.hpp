@@ -3,6 +3,8 @@
 // order), from plain lib/ types, so the element only maps metas to these structs.
 //
 // What is drawn (each layer can be switched off in OverlayStyle):
+//  - rejected: vegetation that depth rejected (colour said plant, the 3D canopy said not this
+//    tree: grass, the next row, the neighbours), tinted a neutral grey-blue in the left view;
 //  - contour: the canopy's outer contour per view, yellow;
 //  - box: the canopy's bounding box per view, cyan;
 //  - matches: a dot per match in each view (or, style kLines, a line from the left point to the
@@ -40,6 +42,8 @@ inline constexpr Rgb kContourColor{255, 230, 0};  // yellow
 inline constexpr Rgb kBoxColor{0, 230, 255};      // cyan
 inline constexpr Rgb kUnknownDepthColor{150, 150, 150};
 inline constexpr Rgb kTextColor{255, 255, 255};
+// Rejected vegetation: each colour channel becomes the mean of the pixel's and this one's.
+inline constexpr Rgb kRejectedColor{110, 130, 170};
 
 // The depth colour map: t = 0 (near) is red, through magenta and violet, to t = 1 (far) blue;
 // saturated, bright and without green, so it stands out on foliage. t is clamped to [0, 1].
@@ -49,6 +53,7 @@ enum class MatchStyle { kDots, kLines };
 
 struct OverlayStyle {
   bool contour = true, box = true, matches = true, bands = true, text = true;
+  bool rejected = true;
   MatchStyle match_style = MatchStyle::kDots;
   // Depth range of the colour map (m). Both 0: from the data, the 5th..95th percentile of the
   // known match depths (and band depths when there are no matches).
@@ -80,7 +85,14 @@ struct OverlayScene {
   StereoGeometry geometry;
   double band_depth_m = 0;
   std::vector<std::string> text;   // the text panel's lines; empty: no panel
+  // The left view's vegetation that is not canopy (CV_8U of the view's size, non-zero =
+  // rejected; see rejected_vegetation()); empty: nothing to tint.
+  cv::Mat rejected;
 };
+
+// The vegetation pixels that are not canopy: vegetation AND NOT canopy (both CV_8U of one size;
+// an empty canopy rejects all the vegetation). A new matrix.
+cv::Mat rejected_vegetation(const cv::Mat &vegetation, const cv::Mat &canopy);
 
 // A band as left-view pixels: its edges projected as x = fx * X / Z + cx, y = fy * Y / Z + cy at
 // depth Z = depth_m. treemetrics converts the silhouette's edges to metres at the canopy's
@@ -96,8 +108,10 @@ BandSegment band_segment(const Band &band, const StereoGeometry &geometry, doubl
 // distance, height, width, thickness in metres with two decimals ("height >= 1.20 m" when the
 // canopy touches the top or bottom border, width likewise for left/right), each followed by the
 // smoothed value in brackets when `smoothed` is given and reads differently, and a line with the
-// numbers of points and matches.
-std::vector<std::string> metrics_text(const TreeMetrics &metrics, const TreeMetrics *smoothed);
+// numbers of points and matches; with `confidence`, then a line "conf 0.93" (the share of the
+// silhouette with depth support).
+std::vector<std::string> metrics_text(const TreeMetrics &metrics, const TreeMetrics *smoothed,
+                                      bool confidence = false);
 
 // Draws the scene onto `image` (CV_8UC3 or CV_8UC4 per `order`.channels; n_views views side by
 // side). Throws std::runtime_error on an image type that does not match the order, or an odd
