@@ -175,7 +175,9 @@ struct Job {
 
 void write_metrics_json(JsonWriter &w, const GstTreeStereoMetrics &m)
 {
-  w.field("tree_present", bool(m.tree_present));
+  const gchar *mode =
+      gst_tree_stereo_canopy_mode_to_string(GstTreeStereoCanopyMode(m.canopy_mode));
+  w.field("tree_present", bool(m.tree_present)).field("canopy_mode", mode ? mode : "unknown");
   if (!m.tree_present)
     return;
   w.field("distance_m", m.distance_m)
@@ -207,10 +209,14 @@ void write_metrics_json(JsonWriter &w, const GstTreeStereoMetrics &m)
           .field("left_m", b.left_m)
           .field("right_m", b.right_m)
           .field("width_m", b.width_m)
-          .field("depth_m", b.depth_m);
+          .field("depth_m", b.depth_m)
+          .field("fill", b.fill);
     w.end_object();
   }
-  w.end_array().field("n_points", m.n_points).field("n_matches", m.n_matches);
+  w.end_array()
+      .field("n_points", m.n_points)
+      .field("n_matches", m.n_matches)
+      .field("confidence", m.confidence);
 }
 
 void write_json(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
@@ -262,7 +268,7 @@ void write_json(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
 
 const char *kCsvHeader = "frame,pts_ns,tree_present,distance_m,height_m,width_m,thickness_m,"
                          "area_m2,perimeter_m,complexity,centroid_x_m,centroid_y_m,centroid_z_m,"
-                         "clipped,n_points,n_matches";
+                         "clipped,n_points,n_matches,confidence";
 
 void write_csv(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
 {
@@ -270,17 +276,17 @@ void write_csv(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
   char line[512];
   const GstClockTime pts = GST_BUFFER_PTS(buf);
   if (!mm || !mm->metrics.tree_present) {
-    std::snprintf(line, sizeof line, "%" G_GUINT64_FORMAT ",%s,false,,,,,,,,,,,,,\n", job.frames,
+    std::snprintf(line, sizeof line, "%" G_GUINT64_FORMAT ",%s,false,,,,,,,,,,,,,,\n", job.frames,
                   GST_CLOCK_TIME_IS_VALID(pts) ? std::to_string(pts).c_str() : "");
   } else {
     const GstTreeStereoMetrics &m = mm->metrics;
     std::snprintf(line, sizeof line,
                   "%" G_GUINT64_FORMAT ",%s,true,%.5f,%.5f,%.5f,%.5f,%.6f,%.5f,%.4f,%.5f,%.5f,"
-                  "%.5f,%u,%u,%u\n",
+                  "%.5f,%u,%u,%u,%.4f\n",
                   job.frames, GST_CLOCK_TIME_IS_VALID(pts) ? std::to_string(pts).c_str() : "",
                   m.distance_m, m.height_m, m.width_m, m.thickness_m, m.area_m2, m.perimeter_m,
                   m.complexity, m.centroid_m[0], m.centroid_m[1], m.centroid_m[2], m.clipped,
-                  m.n_points, m.n_matches);
+                  m.n_points, m.n_matches, m.confidence);
   }
   c << line;
   c.flush();

@@ -30,7 +30,8 @@ path, n, tol, extra = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), sys.arg
 lines = [l for l in open(path) if l.strip()]
 assert len(lines) == n, f"{len(lines)} JSON lines, expected {n}"
 fields = ["distance_m", "height_m", "width_m", "thickness_m", "area_m2", "perimeter_m",
-          "complexity", "centroid_m", "bands", "clipped", "n_points", "n_matches"] + extra
+          "complexity", "centroid_m", "bands", "clipped", "n_points", "n_matches", "confidence",
+          "canopy_mode"] + extra
 def finite(v):
     if isinstance(v, float): return math.isfinite(v)
     if isinstance(v, list): return all(finite(x) for x in v)
@@ -45,6 +46,11 @@ for i, l in enumerate(lines):
     for f in fields:
         assert f in o, f"field {f} missing in frame {i}"
     assert len(o["centroid_m"]) == 3 and len(o["bands"]) == 4
+    assert 0 <= o["confidence"] <= 1, f"confidence {o['confidence']} in frame {i}"
+    assert o["canopy_mode"] in ("colour", "tree", "row"), f"canopy_mode {o['canopy_mode']}"
+    for b in o["bands"]:
+        if b["present"]:
+            assert 0 < b["fill"] <= 1, f"band fill {b['fill']} in frame {i}"
     if "truth" in o:
         t = o["truth"]["distance_m"]
         assert abs(o["distance_m"] - t) <= tol * t, f"frame {i}: distance {o['distance_m']} vs truth {t}"
@@ -58,7 +64,7 @@ PY
 check_json "$tmp/s.jsonl" 6 0.02 points_mm,matches || fail "synthetic JSON"
 [ "$(grep -c '^frame ' "$tmp/s.out")" -eq 6 ] || { cat "$tmp/s.out"; fail "not one summary line per frame"; }
 [ "$(wc -l <"$tmp/s.csv")" -eq 7 ] || fail "CSV should hold a header and 6 rows"
-head -1 "$tmp/s.csv" | grep -q '^frame,pts_ns,tree_present,distance_m' || fail "CSV header"
+head -1 "$tmp/s.csv" | grep -q '^frame,pts_ns,tree_present,distance_m.*,confidence$' || fail "CSV header"
 n=$(decoded_frames "$tmp/s.mp4")
 [ "$n" -eq 6 ] || fail "the recording decodes to $n frames, expected 6"
 
