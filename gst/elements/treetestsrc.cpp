@@ -14,6 +14,13 @@
  * (float mm) and canopy mask of this view, so tests and benchmarks compare measured values
  * with the truth inside a pipeline. With #treetestsrc:speed the rig drives along the row.
  *
+ * #treetestsrc:scene chooses what surrounds the tree: `lab` (the tree alone on soil), `orchard`
+ * (a row of trees on mown grass with dry patches, gaps of #treetestsrc:row-gap-min to
+ * #treetestsrc:row-gap-max between neighbouring canopies, a second row
+ * #treetestsrc:row-spacing behind) or `hedgerow` (the same with touching, overlapping canopies).
+ * The truth meta is always about the tree in front: the near-row tree whose trunk is nearest to
+ * the left camera's optical axis; its canopy mask holds only that tree's leaves.
+ *
  * Frame size and rate come from caps (default 1296x972 at 7/1, any size from 64x48 to
  * 2592x1944). In live mode (#treetestsrc:is-live) frames are paced by the clock.
  *
@@ -28,6 +35,11 @@
  * gst-launch-1.0 treetestsrc num-buffers=1 calibration-out=rig.yml ! fakesink
  * gst-launch-1.0 stereorectify name=r calibration=rig.yml ! videoconvert ! autovideosink \
  *   treetestsrc view=left ! r.left  treetestsrc view=right ! r.right
+ * ]|
+ * An orchard row passing by at 0.5 m/s:
+ * |[
+ * gst-launch-1.0 treetestsrc scene=orchard speed=0.5 num-buffers=20 ! videoconvert ! \
+ *   autovideosink
  * ]|
  */
 #ifdef HAVE_CONFIG_H
@@ -68,6 +80,10 @@ enum {
   PROP_IS_LIVE,
   PROP_CALIBRATION_OUT,
   PROP_TRUTH_MAPS,
+  PROP_SCENE,
+  PROP_ROW_GAP_MIN,
+  PROP_ROW_GAP_MAX,
+  PROP_ROW_SPACING,
 };
 
 #define DEFAULT_WIDTH 1296
@@ -136,6 +152,32 @@ static GType gst_tree_test_src_view_get_type(void)
     g_once_init_leave(&type, t);
   }
   return type;
+}
+
+static GType gst_tree_test_src_scene_get_type(void)
+{
+  static GType type = 0;
+  static const GEnumValue values[] = {
+      {int(SceneKind::Lab), "The tree alone on soil", "lab"},
+      {int(SceneKind::Orchard), "A row of trees on grass, a second row behind", "orchard"},
+      {int(SceneKind::Hedgerow), "A row of touching, overlapping canopies on grass", "hedgerow"},
+      {0, nullptr, nullptr},
+  };
+  if (g_once_init_enter(&type)) {
+    GType t = g_enum_register_static("GstTreeTestSrcScene", values);
+    g_once_init_leave(&type, t);
+  }
+  return type;
+}
+
+/* A property in m, -1 meaning the scene's default, as SceneParams (mm, NaN = default) has it. */
+static double mm_or_default(double m)
+{
+  return m == -1.0 ? kSceneDefault : 1000.0 * m;
+}
+static double m_or_default(double mm)
+{
+  return std::isnan(mm) ? -1.0 : mm / 1000.0;
 }
 
 static Settings snapshot(GstTreeTestSrc *self)
@@ -376,6 +418,18 @@ static void gst_tree_test_src_set_property(GObject *object, guint prop_id, const
     case PROP_TRUTH_MAPS:
       s.truth_maps = g_value_get_boolean(value);
       break;
+    case PROP_SCENE:
+      s.scene.kind = SceneKind(g_value_get_enum(value));
+      break;
+    case PROP_ROW_GAP_MIN:
+      s.scene.row_gap_min_mm = mm_or_default(g_value_get_double(value));
+      break;
+    case PROP_ROW_GAP_MAX:
+      s.scene.row_gap_max_mm = mm_or_default(g_value_get_double(value));
+      break;
+    case PROP_ROW_SPACING:
+      s.scene.row_spacing_mm = mm_or_default(g_value_get_double(value));
+      break;
     default:
       G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
       return;
@@ -428,6 +482,18 @@ static void gst_tree_test_src_get_property(GObject *object, guint prop_id, GValu
     break;
   case PROP_TRUTH_MAPS:
     g_value_set_boolean(value, s.truth_maps);
+    break;
+  case PROP_SCENE:
+    g_value_set_enum(value, int(s.scene.kind));
+    break;
+  case PROP_ROW_GAP_MIN:
+    g_value_set_double(value, m_or_default(s.scene.row_gap_min_mm));
+    break;
+  case PROP_ROW_GAP_MAX:
+    g_value_set_double(value, m_or_default(s.scene.row_gap_max_mm));
+    break;
+  case PROP_ROW_SPACING:
+    g_value_set_double(value, m_or_default(s.scene.row_spacing_mm));
     break;
   default:
     G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
@@ -511,6 +577,26 @@ static void gst_tree_test_src_class_init(GstTreeTestSrcClass *klass)
           "truth-maps", "Truth maps",
           "Attach the per-pixel depth and canopy mask to the ground-truth meta", TRUE,
           GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)));
+
+  g_object_class_install_property(
+      gobject_class, PROP_SCENE,
+      g_param_spec_enum(
+          "scene", "Scene", "What surrounds the tree: lab, orchard or hedgerow",
+          gst_tree_test_src_scene_get_type(), int(SceneKind::Lab),
+          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)));
+  install_double(gobject_class, PROP_ROW_GAP_MIN, "row-gap-min", "Row gap min",
+                 "Smallest gap between neighbouring canopies of the row (m; negative = "
+                 "overlap, at least -half the canopy width; -1 = the scene's default: orchard "
+                 "0.2, hedgerow -0.15 canopy widths)",
+                 -1.0, 20.0, -1.0);
+  install_double(gobject_class, PROP_ROW_GAP_MAX, "row-gap-max", "Row gap max",
+                 "Largest gap between neighbouring canopies of the row (m; -1 = the scene's "
+                 "default: orchard 0.6, hedgerow 0)",
+                 -1.0, 20.0, -1.0);
+  install_double(gobject_class, PROP_ROW_SPACING, "row-spacing", "Row spacing",
+                 "Distance from the row to the next row behind it (m, 1.5-8; -1 = the scene's "
+                 "default 3.5)",
+                 -1.0, 8.0, -1.0);
 
   gst_element_class_add_static_pad_template(element_class, &src_template);
   gst_element_class_set_static_metadata(

@@ -1,5 +1,5 @@
 /* treetestsrc: caps, timestamps, the ground-truth meta, the written calibration, the stereo
- * rig (same seed = same scene), property ranges. */
+ * rig (same seed = same scene), property ranges, the orchard scene. */
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
 #include <gst/video/video.h>
@@ -163,6 +163,123 @@ GST_START_TEST (test_property_ranges)
 
 GST_END_TEST;
 
+/* An orchard frame: the tree in front (the truth's canopy mask), other trees of its row beside
+ * it, the row behind and grass, told apart by colour and the truth's depth map. */
+GST_START_TEST (test_orchard_scene)
+{
+  GstHarness *h = source ("view=left scene=orchard seed=3 distance=2.0 noise=0",
+      "video/x-raw,format=RGB,width=320,height=240,framerate=7/1");
+  GstBuffer *buf = gst_harness_pull (h);
+  GstTreeStereoTruthMeta *t = gst_buffer_get_tree_stereo_truth_meta (buf);
+  GstMapInfo img, depth, mask;
+  guint front = 0, row = 0, back = 0, grass = 0, dry = 0;
+  guint stride = GST_ROUND_UP_4 (320 * 3);
+
+  fail_unless (t != NULL && t->depth != NULL && t->mask != NULL);
+  /* the truth is about the tree in front: its size as asked */
+  fail_unless (fabs (t->truth.trunk_distance_m - 2.0) < 1e-6);
+  fail_unless (fabs (t->truth.height_m - 0.9) < 1e-3);
+  fail_unless (fabs (t->truth.width_m - 0.7) < 1e-3);
+  fail_unless (fabs (t->truth.offset_x_m) < 1e-9);
+  fail_unless (gst_buffer_map (buf, &img, GST_MAP_READ));
+  fail_unless (gst_buffer_map (t->depth, &depth, GST_MAP_READ));
+  fail_unless (gst_buffer_map (t->mask, &mask, GST_MAP_READ));
+  for (guint y = 0; y < 240; y++)
+    for (guint x = 0; x < 320; x++) {
+      const guint8 *px = img.data + y * stride + 3 * x;
+      const gint exg = 2 * px[1] - px[0] - px[2];
+      const gfloat z = ((const gfloat *) depth.data)[y * 320 + x] / 1000.0f;
+      if (mask.data[y * 320 + x] == 255) {
+        front++;
+        continue;
+      }
+      if (z >= 1.6f && z <= 2.4f && exg > 10)
+        row++;                  /* a neighbour's leaves */
+      else if (z >= 5.0f && z <= 6.0f && exg > 10)
+        back++;                 /* the row behind (3.5 m further) */
+      else if (y > 120 && ((z > 2.5f && z < 4.9f) || (z > 6.1f && z < 9.9f))) {
+        /* only ground lies between the rows and between the back row and the wall (10 m) */
+        grass += exg > 20;
+        dry += exg < 10;
+      }
+    }
+  gst_buffer_unmap (t->mask, &mask);
+  gst_buffer_unmap (t->depth, &depth);
+  gst_buffer_unmap (buf, &img);
+  fail_unless (front > 320 * 240 / 20, "tree in front %u px", front);
+  fail_unless (row > 50, "neighbours %u px", row);
+  fail_unless (back > 200, "back row %u px", back);
+  fail_unless (grass > 1000, "green grass %u px", grass);
+  fail_unless (dry > 20, "dry grass %u px", dry);
+  gst_buffer_unref (buf);
+  gst_harness_teardown (h);
+}
+
+GST_END_TEST;
+
+GST_START_TEST (test_scene_properties)
+{
+  GstElement *e = gst_element_factory_make ("treetestsrc", NULL);
+  gdouble lo, hi, spacing;
+  gint scene;
+
+  /* defaults: the lab scene, the rows at the scene's defaults */
+  g_object_get (e, "scene", &scene, "row-gap-min", &lo, "row-gap-max", &hi, "row-spacing",
+      &spacing, NULL);
+  fail_unless_equals_int (scene, 0);
+  fail_unless_equals_float (lo, -1.0);
+  fail_unless_equals_float (hi, -1.0);
+  fail_unless_equals_float (spacing, -1.0);
+  gst_util_set_object_arg (G_OBJECT (e), "scene", "hedgerow");
+  g_object_set (e, "row-gap-min", 0.3, "row-gap-max", 0.5, "row-spacing", 4.0, NULL);
+  g_object_get (e, "scene", &scene, "row-gap-min", &lo, "row-gap-max", &hi, "row-spacing",
+      &spacing, NULL);
+  fail_unless_equals_int (scene, 2);
+  fail_unless_equals_float (lo, 0.3);
+  fail_unless_equals_float (hi, 0.5);
+  fail_unless_equals_float (spacing, 4.0);
+  gst_util_set_object_arg (G_OBJECT (e), "scene", "orchard");
+  g_object_set (e, "row-gap-min", -1.0, NULL);
+  g_object_get (e, "scene", &scene, "row-gap-min", &lo, NULL);
+  fail_unless_equals_int (scene, 1);
+  fail_unless_equals_float (lo, -1.0);
+  ASSERT_WARNING (g_object_set (e, "row-spacing", 9.0, NULL));
+  g_object_get (e, "row-spacing", &spacing, NULL);
+  fail_unless_equals_float (spacing, 4.0);
+  gst_object_unref (e);
+}
+
+GST_END_TEST;
+
+/* A bad row parameter stops the stream with an error naming it. */
+GST_START_TEST (test_bad_row_parameters)
+{
+  GstHarness *h = gst_harness_new_parse ("treetestsrc scene=orchard row-gap-min=0.6 "
+      "row-gap-max=0.2");
+  GstBus *bus = gst_bus_new ();
+  GstMessage *msg;
+  GError *err = NULL;
+  gchar *debug = NULL;
+
+  gst_element_set_bus (h->element, bus);
+  gst_harness_set_sink_caps_str (h,
+      "video/x-raw,format=RGB,width=160,height=120,framerate=7/1");
+  gst_harness_play (h);
+  msg = gst_bus_timed_pop_filtered (bus, 5 * GST_SECOND, GST_MESSAGE_ERROR);
+  fail_unless (msg != NULL, "no error");
+  gst_message_parse_error (msg, &err, &debug);
+  fail_unless (strstr (err->message, "row_gap_max_mm") != NULL ||
+      (debug && strstr (debug, "row_gap_max_mm") != NULL), "%s / %s", err->message, debug);
+  g_error_free (err);
+  g_free (debug);
+  gst_message_unref (msg);
+  gst_element_set_bus (h->element, NULL);
+  gst_object_unref (bus);
+  gst_harness_teardown (h);
+}
+
+GST_END_TEST;
+
 static Suite *
 treetestsrc_suite (void)
 {
@@ -174,6 +291,9 @@ treetestsrc_suite (void)
   tcase_add_test (tc, test_rig_and_determinism);
   tcase_add_test (tc, test_calibration_out);
   tcase_add_test (tc, test_property_ranges);
+  tcase_add_test (tc, test_orchard_scene);
+  tcase_add_test (tc, test_scene_properties);
+  tcase_add_test (tc, test_bad_row_parameters);
   return s;
 }
 
