@@ -2,6 +2,8 @@
 # Regenerates tests/fixtures/ byte for byte from the synthetic orchard (treestereo-synth).
 #   seq-static: seed 1, trunk at 2.0 m, the rig standing still, nominal light
 #   seq-moving: seed 7, trunk at 1.8 m, the sprayer driving at 0.5 m/s (7 fps), light 0.8
+#   seq-orchard: the orchard scene (neighbours in the row, a row behind, grass), seed 3, trunk
+#     at 2.0 m, driving slowly (0.3 m/s, 7 fps), light 1.0, JPEG quality 80 (under 1 MB)
 # Each: 8 frame pairs 640x480 as left_%04d.jpg / right_%04d.jpg, calibration.yml, truth.json.
 #   sweep-1296: issue 7's accuracy conditions at the size its targets are for: 5 pairs 1296x972
 #     (JPEG quality 90), pair k (0..4) is tree seed k+1 with its trunk at 1.8 + 0.1 k m; one
@@ -13,10 +15,12 @@ build=${TREESTEREO_BUILD_DIR:-build}
 synth="$build/tools/treestereo-synth"
 [ -x "$synth" ] || { echo "make-fixtures: build first (scripts/build.sh)" >&2; exit 1; }
 out=${FIXTURES_OUT:-tests/fixtures}
-rm -rf "$out/seq-static" "$out/seq-moving" "$out/sweep-1296"
+rm -rf "$out/seq-static" "$out/seq-moving" "$out/seq-orchard" "$out/sweep-1296"
 "$synth" -o "$out/seq-static" --seed 1 --distance 2.0 --size 640x480 --frames 8 --format jpg
 "$synth" -o "$out/seq-moving" --seed 7 --distance 1.8 --speed 0.5 --fps 7 --light 0.8 \
   --size 640x480 --frames 8 --format jpg
+"$synth" -o "$out/seq-orchard" --scene orchard --seed 3 --distance 2.0 --speed 0.3 --fps 7 \
+  --light 1.0 --size 640x480 --frames 8 --format jpg --quality 80
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 mkdir -p "$out/sweep-1296"
