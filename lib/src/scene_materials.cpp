@@ -140,7 +140,7 @@ cv::Vec3f soil_color(double x, double z, double footprint, std::uint32_t seed)
 cv::Vec3f grass_color(double x, double z, double footprint, std::uint32_t seed)
 {
   // Linear levels: lawn green (ExG about +100), straw (ExG about 0) and bare earth (ExG < 0).
-  const cv::Vec3f green(66, 118, 40), lush(48, 104, 34), straw(164, 146, 118), earth(132, 104, 88);
+  const cv::Vec3f green(66, 118, 40), lush(48, 104, 34), straw(176, 142, 104), earth(140, 106, 86);
   const float patches = fbm2(x, z, 1400.0, 3, footprint, seed + 51U);
   const float tone = fbm2(x, z, 320.0, 2, footprint, seed + 52U);
   const float clumps = fbm2(x, z, 60.0, 3, footprint, seed + 53U);
