@@ -179,9 +179,12 @@ int run(int argc, char **argv)
     if (p.kind != SceneKind::Lab) {
       // The near-row trees the left view sees at the trunks' distance.
       const double travel = renderer.travel_mm(std::uint64_t(f));
-      w.field("scene", scene_kind_name(p.kind)).field("front_tree", t.front_tree).key("row_trees").begin_array();
-      for (const RowTree &r : renderer.row_trees(travel + ray_lo * p.distance_mm,
-                                                 travel + ray_hi * p.distance_mm))
+      w.field("scene", scene_kind_name(p.kind))
+          .field("front_tree", t.front_tree)
+          .key("row_trees")
+          .begin_array();
+      for (const RowTree &r :
+           renderer.row_trees(travel + ray_lo * p.distance_mm, travel + ray_hi * p.distance_mm))
         w.begin_object()
             .field("index", r.index)
             .field("x_m", r.x_m)

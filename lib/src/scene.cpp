@@ -83,7 +83,8 @@ SceneParams resolve_scene_params(const SceneParams &params)
     p.row_gap_max_mm = hedge ? 0.0 : 600.0;
   if (std::isnan(p.row_spacing_mm))
     p.row_spacing_mm = 3500.0;
-  if (p.kind != SceneKind::Lab && p.background_distance_mm == SceneParams{}.background_distance_mm &&
+  if (p.kind != SceneKind::Lab &&
+      p.background_distance_mm == SceneParams{}.background_distance_mm &&
       std::isfinite(p.row_spacing_mm) && std::isfinite(p.canopy_depth_mm))
     p.background_distance_mm = std::max(p.background_distance_mm, back_row_far_mm(p) + 3000.0);
   return p;
@@ -92,8 +93,7 @@ SceneParams resolve_scene_params(const SceneParams &params)
 void validate_scene_params(const SceneParams &params)
 {
   const SceneParams p = resolve_scene_params(params);
-  require(p.kind == SceneKind::Lab || p.kind == SceneKind::Orchard ||
-              p.kind == SceneKind::Hedgerow,
+  require(p.kind == SceneKind::Lab || p.kind == SceneKind::Orchard || p.kind == SceneKind::Hedgerow,
           "kind", double(int(p.kind)), "Lab, Orchard or Hedgerow");
   auto finite = [](double v) { return std::isfinite(v); };
   require(p.image_size.width >= 64 && p.image_size.width <= kMaxWidth, "image width",
@@ -204,7 +204,8 @@ struct Tree {
   std::uint32_t seed = 0;       // texture seed of this tree
   std::int64_t k = 0;           // index in its row
   SurfaceLabel leaf = SurfaceLabel::Leaf; // label of its leaves
-  double rb = 0;                // bounding sphere about centre: every cluster's sphere and the trunk
+  // Bounding sphere about centre: holds every cluster's sphere and the trunk.
+  double rb = 0;
 };
 
 // The key of tree k of the back row in make_tree's generator (the near row's are k itself).
@@ -334,8 +335,8 @@ struct Row {
 double row_uniform(const SceneParams &p, std::uint64_t row, std::int64_t k, std::uint64_t draw,
                    double lo, double hi)
 {
-  const std::uint64_t h =
-      hash64(hash64(p.seed + 0x5eedULL) ^ hash64(row * 0x100000001b3ULL + std::uint64_t(k) * 8 + draw));
+  const std::uint64_t h = hash64(hash64(p.seed + 0x5eedULL) ^
+                                 hash64(row * 0x100000001b3ULL + std::uint64_t(k) * 8 + draw));
   return lo + (hi - lo) * double(h >> 11) * (1.0 / 9007199254740992.0);
 }
 
@@ -353,7 +354,9 @@ Row near_row(const SceneParams &p)
                  nominal[2] * row_uniform(p, 1, k, 2, kRowDepthLo, kRowDepthHi));
   };
   // gap(k): between the canopies of trees k and k + 1.
-  auto gap = [&](std::int64_t k) { return row_uniform(p, 1, k, 3, p.row_gap_min_mm, p.row_gap_max_mm); };
+  auto gap = [&](std::int64_t k) {
+    return row_uniform(p, 1, k, 3, p.row_gap_min_mm, p.row_gap_max_mm);
+  };
   auto at = [&](std::int64_t k) -> RowSlot & { return row.slots[std::size_t(k + Row::kHalf)]; };
   at(0) = RowSlot{p.tree_x_mm, nominal};
   for (std::int64_t k = 1; k <= Row::kHalf; ++k) {
@@ -651,7 +654,8 @@ struct View {
   cv::Matx33d R;         // scene -> view camera frame (with T below)
   Vec3d T;
   double fx = 0;
-  double tan_x = 0;      // largest |x/z| of a ray (half the view's width at unit depth)
+  // The largest |x/z| of a ray (half the view's width at unit depth).
+  double tan_x = 0;
   std::vector<Cone> cones;
   int tiles_x = 0, tiles_y = 0;
 };
@@ -782,15 +786,15 @@ struct SceneRenderer::Impl {
   std::vector<Tree> trees_in_view(const View &v, double travel, int &front) const;
 };
 
-std::vector<Tree> SceneRenderer::Impl::trees_in_view(const View &v, double travel,
-                                                     int &front) const
+std::vector<Tree> SceneRenderer::Impl::trees_in_view(const View &v, double travel, int &front) const
 {
   std::vector<Tree> trees;
   const std::int64_t k_front = front_tree(travel);
   front = -1;
   if (p.kind == SceneKind::Lab) {
     // The row of trees slides by; the nearest one is in view.
-    trees.push_back(make_lab_tree(p, k_front, p.tree_x_mm + double(k_front) * p.tree_spacing_mm - travel));
+    trees.push_back(
+        make_lab_tree(p, k_front, p.tree_x_mm + double(k_front) * p.tree_spacing_mm - travel));
     front = 0;
     return trees;
   }
@@ -805,8 +809,9 @@ std::vector<Tree> SceneRenderer::Impl::trees_in_view(const View &v, double trave
       Tree t = make_tree(p, is_near ? std::uint64_t(k) : kBackRowKey + std::uint64_t(k),
                          s.x - travel, row.z, s.size);
       t.k = k;
-      t.leaf = !is_near ? SurfaceLabel::BackLeaf
-                        : k == k_front ? SurfaceLabel::Leaf : SurfaceLabel::RowLeaf;
+      t.leaf = !is_near       ? SurfaceLabel::BackLeaf
+               : k == k_front ? SurfaceLabel::Leaf
+                              : SurfaceLabel::RowLeaf;
       if (is_near && k == k_front)
         front = int(trees.size());
       trees.push_back(std::move(t));
@@ -892,34 +897,38 @@ void SceneRenderer::render(int view, std::uint64_t frame, cv::Mat &rgb, GroundTr
   std::vector<std::int16_t> row_index(trees.size(), kNoTree);
   for (std::size_t t = 0; t < trees.size(); ++t)
     if (trees[t].leaf != SurfaceLabel::BackLeaf)
-      row_index[t] = std::int16_t(std::max<std::int64_t>(-32767, std::min<std::int64_t>(32767, trees[t].k)));
+      row_index[t] =
+          std::int16_t(std::max<std::int64_t>(-32767, std::min<std::int64_t>(32767, trees[t].k)));
 
   rgb.create(size, CV_8UC3);
   cv::Mat depth(size, CV_32F), labels(size, CV_8U), tree_index(size, CV_16S);
   const TraceContext cx{&p, &trees, &clusters, travel, v.fx};
   const float gain = float(p.light);
-  cv::parallel_for_(cv::Range(0, size.height), [&](const cv::Range &rows) {
-    std::vector<Crossing> xs(std::size_t(2 * cand.max_clusters + 2));
-    for (int y = rows.start; y < rows.end; ++y) {
-      const cv::Vec2f *ray = v.rays.ptr<cv::Vec2f>(y);
-      cv::Vec3b *out = rgb.ptr<cv::Vec3b>(y);
-      float *z = depth.ptr<float>(y);
-      std::uint8_t *lab = labels.ptr<std::uint8_t>(y);
-      std::int16_t *idx = tree_index.ptr<std::int16_t>(y);
-      const int tile_row = (y / kTile) * v.tiles_x;
-      for (int x = 0; x < size.width; ++x) {
-        const int tile = tile_row + x / kTile;
-        const Vec3d d = v.Rt * Vec3d(ray[x][0], ray[x][1], 1.0);
-        const Hit h = trace(cx, v.origin, d, cand.tile(std::size_t(tile)), xs.data());
-        out[x] = cv::Vec3b(cv::saturate_cast<uchar>(h.rgb[0] * gain),
-                           cv::saturate_cast<uchar>(h.rgb[1] * gain),
-                           cv::saturate_cast<uchar>(h.rgb[2] * gain));
-        z[x] = float(h.t);
-        lab[x] = std::uint8_t(h.label);
-        idx[x] = h.tree >= 0 ? row_index[std::size_t(h.tree)] : kNoTree;
-      }
-    }
-  }, std::max(1.0, size.height / 8.0));
+  cv::parallel_for_(
+      cv::Range(0, size.height),
+      [&](const cv::Range &rows) {
+        std::vector<Crossing> xs(std::size_t(2 * cand.max_clusters + 2));
+        for (int y = rows.start; y < rows.end; ++y) {
+          const cv::Vec2f *ray = v.rays.ptr<cv::Vec2f>(y);
+          cv::Vec3b *out = rgb.ptr<cv::Vec3b>(y);
+          float *z = depth.ptr<float>(y);
+          std::uint8_t *lab = labels.ptr<std::uint8_t>(y);
+          std::int16_t *idx = tree_index.ptr<std::int16_t>(y);
+          const int tile_row = (y / kTile) * v.tiles_x;
+          for (int x = 0; x < size.width; ++x) {
+            const int tile = tile_row + x / kTile;
+            const Vec3d d = v.Rt * Vec3d(ray[x][0], ray[x][1], 1.0);
+            const Hit h = trace(cx, v.origin, d, cand.tile(std::size_t(tile)), xs.data());
+            out[x] = cv::Vec3b(cv::saturate_cast<uchar>(h.rgb[0] * gain),
+                               cv::saturate_cast<uchar>(h.rgb[1] * gain),
+                               cv::saturate_cast<uchar>(h.rgb[2] * gain));
+            z[x] = float(h.t);
+            lab[x] = std::uint8_t(h.label);
+            idx[x] = h.tree >= 0 ? row_index[std::size_t(h.tree)] : kNoTree;
+          }
+        }
+      },
+      std::max(1.0, size.height / 8.0));
 
   if (p.optical_blur)
     cv::GaussianBlur(rgb, rgb, cv::Size(3, 3), 0.5, 0.5, cv::BORDER_REPLICATE);
@@ -948,7 +957,8 @@ void SceneRenderer::render(int view, std::uint64_t frame, cv::Mat &rgb, GroundTr
   // The tree in front, also when this view does not see it.
   const Tree tree = front >= 0 ? trees[std::size_t(front)] : [&] {
     const RowSlot sl = m.near.slot(g.front_tree);
-    return make_tree(p, std::uint64_t(std::int64_t(g.front_tree)), sl.x - travel, m.near.z, sl.size);
+    return make_tree(p, std::uint64_t(std::int64_t(g.front_tree)), sl.x - travel, m.near.z,
+                     sl.size);
   }();
   double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
   for (const auto &c : tree.clusters)
@@ -989,7 +999,8 @@ void SceneRenderer::render(int view, std::uint64_t frame, cv::Mat &rgb, GroundTr
 std::vector<RowTree> SceneRenderer::row_trees(double from_mm, double to_mm) const
 {
   if (!std::isfinite(from_mm) || !std::isfinite(to_mm) || to_mm - from_mm > 1e7)
-    throw std::runtime_error("SceneRenderer::row_trees: the range must be finite and at most 10 km");
+    throw std::runtime_error(
+        "SceneRenderer::row_trees: the range must be finite and at most 10 km");
   const Impl &m = *impl_;
   const SceneParams &p = m.p;
   std::vector<RowTree> out;

@@ -492,7 +492,8 @@ TEST(Scene, ConcurrentRendersEqualSequentialOnes)
 // ---------------------------------------------------------------------------------------------
 // Orchard and hedgerow
 
-namespace {
+namespace
+{
 
 SceneParams row_scene(SceneKind kind, double noise = 2.0)
 {
@@ -571,9 +572,9 @@ TEST(SceneOrchard, EveryKindOfSurfaceIsThereAndTheGrassIsGreenWithDryPatches)
   cv::Mat rgb;
   GroundTruth g;
   r.render(0, 0, rgb, &g);
-  for (SurfaceLabel l : {SurfaceLabel::Sky, SurfaceLabel::Ground, SurfaceLabel::Background,
-                         SurfaceLabel::Trunk, SurfaceLabel::Leaf, SurfaceLabel::RowLeaf,
-                         SurfaceLabel::BackLeaf})
+  for (SurfaceLabel l :
+       {SurfaceLabel::Sky, SurfaceLabel::Ground, SurfaceLabel::Background, SurfaceLabel::Trunk,
+        SurfaceLabel::Leaf, SurfaceLabel::RowLeaf, SurfaceLabel::BackLeaf})
     EXPECT_GT(count_label(g, l), 100) << "label " << int(l);
   // Grass: green on most of it (well inside, away from the blur of other surfaces), dry patches.
   cv::Mat ground;

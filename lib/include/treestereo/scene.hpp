@@ -112,11 +112,11 @@ constexpr std::int16_t kNoTree = -32768;
 
 // A tree of the near row, in world coordinates (the camera frame of frame 0: x along the row).
 struct RowTree {
-  int index = 0;              // k: 0 is the tree at tree_x_mm
-  double x_m = 0;             // trunk axis
+  int index = 0;                 // k: 0 is the tree at tree_x_mm
+  double x_m = 0;                // trunk axis
   double start_m = 0, end_m = 0; // the canopy's extent along x (exact union of its clusters)
   double height_m = 0, width_m = 0, depth_m = 0; // canopy extents
-  double distance_m = 0;      // trunk axis Z
+  double distance_m = 0;                         // trunk axis Z
 };
 
 // The truth of one rendered view of one frame.
@@ -157,9 +157,9 @@ struct GroundTruth {
   std::vector<cv::Point3f> row_points_mm;
 };
 
-// The same truth with every point-based value (also row_points_mm) rotated by R (X' = R X) and its statistics
-// recomputed, e.g. R = R1 of cv::stereoRectify for the rectified-left frame. The per-pixel maps
-// and the tree's extents are kept as they are.
+// The same truth with every point-based value (also row_points_mm) rotated by R (X' = R X) and its
+// statistics recomputed, e.g. R = R1 of cv::stereoRectify for the rectified-left frame. The
+// per-pixel maps and the tree's extents are kept as they are.
 GroundTruth truth_in_frame(const GroundTruth &truth, const cv::Matx33d &R);
 
 // The rig's calibration at params.image_size: the MER-500 intrinsics of the paper scaled to the
