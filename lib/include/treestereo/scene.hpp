@@ -20,9 +20,12 @@
 // Scene kinds (SceneParams::kind): Lab is the tree alone on soil as above. Orchard and Hedgerow
 // stand it in a row on mown grass (green with dry patches): the near row along x at
 // z = distance_mm, tree k = 0 at tree_x_mm exactly the Lab tree, its neighbours each their own
-// tree and size with a gap of U(row_gap_min_mm, row_gap_max_mm) between canopies (Orchard: free
-// standing trees; Hedgerow: canopies touching or overlapping), and a second row behind at
-// distance_mm + row_spacing_mm. The trees stay fixed to the ground while the rig drives by.
+// tree (width and depth 0.85-1.15, height 0.85-1.1 times the canopy's, from the seed) with a gap
+// of U(row_gap_min_mm, row_gap_max_mm) between canopies (Orchard: free standing trees;
+// Hedgerow: canopies touching or overlapping), and a second row behind at distance_mm +
+// row_spacing_mm (trunks every 1.1-1.7 m, canopies 0.9-1.3 times the size). Beyond 200 trees
+// either side of k = 0 each row's layout repeats (the trees themselves do not). The trees stay
+// fixed to the ground while the rig drives by; every tree that can be in view is rendered.
 #pragma once
 
 #include "treestereo/calibration.hpp"
@@ -66,7 +69,7 @@ struct SceneParams {
                                            // the back row when that is further
   double baseline_mm = 50.0;           // -T.x of the rig
 
-  // Motion: the rig drives along +x; trees repeat every tree_spacing_mm, each its own tree.
+  // Motion: the rig drives along +x. Lab: trees repeat every tree_spacing_mm, each its own tree.
   double speed_m_s = 0.0;              // lateral speed of the sprayer
   double framerate = 7.0;              // frames per second (for the speed)
   double tree_spacing_mm = 3000.0;     // Lab: only the tree nearest to the camera is rendered
