@@ -7,6 +7,7 @@
 //                  [--lights 0.7,1.0,1.3] [--frames 1] [--csv FILE]
 //                  [--siftmatch "layer-tolerance=-1 ..."] [--exgsegment "unmix-edges=false ..."]
 //                  [--stereodepth "edge-band=0 ..."] [--treemetrics "round-limbs=false ..."]
+//                  [--scene lab|orchard|hedgerow] [--treetestsrc "row-spacing=4 ..."]
 //                  (the elements' properties, gst-launch syntax)
 //
 // Truth: distance and thickness are the visible canopy surface's median and p95-p05 depth in the
@@ -43,6 +44,7 @@ struct Config {
   double distance_m;
   std::uint64_t seed;
   double light;
+  SceneKind scene = SceneKind::Lab;
 };
 
 struct Result {
@@ -62,29 +64,32 @@ SceneParams scene_of(const Config &c)
   p.distance_mm = c.distance_m * 1000.0;
   p.seed = c.seed;
   p.light = c.light;
+  p.kind = c.scene;
   return p;
 }
 
 // Extra properties per element, gst-launch syntax.
 struct ElementProps {
-  std::string exgsegment, siftmatch, stereodepth, treemetrics;
+  std::string exgsegment, siftmatch, stereodepth, treemetrics, treetestsrc;
 };
 
 std::vector<Result> run_config(const Config &c, int frames, const std::string &calib,
                                const ElementProps &props)
 {
-  char desc[2048];
+  char desc[4096];
+  const std::string src = std::string("scene=") + scene_kind_name(c.scene) + " " + props.treetestsrc;
   std::snprintf(desc, sizeof desc,
                 "stereorectify name=r calibration=%s ! exgsegment %s ! siftmatch %s ! stereodepth %s ! "
                 "treemetrics post-messages=false %s ! appsink name=out sync=false "
-                "treetestsrc view=left seed=%llu distance=%g light=%g num-buffers=%d "
+                "treetestsrc view=left seed=%llu distance=%g light=%g num-buffers=%d %s "
                 "truth-maps=false ! video/x-raw,format=RGB,width=%d,height=%d ! r.left "
-                "treetestsrc view=right seed=%llu distance=%g light=%g num-buffers=%d "
+                "treetestsrc view=right seed=%llu distance=%g light=%g num-buffers=%d %s "
                 "truth-maps=false ! video/x-raw,format=RGB,width=%d,height=%d ! r.right",
                 calib.c_str(), props.exgsegment.c_str(), props.siftmatch.c_str(),
-                props.stereodepth.c_str(), props.treemetrics.c_str(), (unsigned long long)c.seed, c.distance_m, c.light, frames,
-                c.size.width, c.size.height, (unsigned long long)c.seed, c.distance_m, c.light,
-                frames, c.size.width, c.size.height);
+                props.stereodepth.c_str(), props.treemetrics.c_str(), (unsigned long long)c.seed,
+                c.distance_m, c.light, frames, src.c_str(), c.size.width, c.size.height,
+                (unsigned long long)c.seed, c.distance_m, c.light, frames, src.c_str(),
+                c.size.width, c.size.height);
   GError *err = nullptr;
   GstElement *p = gst_parse_launch(desc, &err);
   if (!p || err)
@@ -193,6 +198,7 @@ int main(int argc, char **argv)
   std::string csv;
   ElementProps props;
   int frames = 1;
+  SceneKind scene = SceneKind::Lab;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (sweep_option(a, v, sweep))
@@ -209,6 +215,10 @@ int main(int argc, char **argv)
       props.treemetrics = v;
     else if (a == "--stereodepth")
       props.stereodepth = v;
+    else if (a == "--treetestsrc")
+      props.treetestsrc = v;
+    else if (a == "--scene")
+      scene = scene_kind_from_name(v);
     else {
       std::fprintf(stderr, "bench-accuracy: unknown option %s\n", a.c_str());
       return 2;
@@ -224,7 +234,7 @@ int main(int argc, char **argv)
     for (double d : parse_list(sweep.distances))
       for (double s : parse_list(sweep.seeds))
         for (double l : parse_list(sweep.lights)) {
-          Config c{size, d, std::uint64_t(s), l};
+          Config c{size, d, std::uint64_t(s), l, scene};
           std::vector<Result> r = run_config(c, frames, calib, props);
           for (const Result &x : r)
             std::fprintf(stderr,

@@ -78,6 +78,7 @@
 #include "common.hpp"
 #include "elements.hpp"
 
+#include "treestereo/canopy.hpp"
 #include "treestereo/densify.hpp"
 #include "treestereo/depth.hpp"
 
@@ -112,7 +113,50 @@ static GType gst_stereo_depth_mode_get_type(void)
   return type;
 }
 
+typedef enum {
+  GST_STEREO_DEPTH_CANOPY_OFF = 0,
+  GST_STEREO_DEPTH_CANOPY_TREE = 1,
+  GST_STEREO_DEPTH_CANOPY_ROW = 2,
+} GstStereoDepthCanopy;
+
+#define GST_TYPE_STEREO_DEPTH_CANOPY (gst_stereo_depth_canopy_get_type())
+static GType gst_stereo_depth_canopy_get_type(void)
+{
+  static GType type = 0;
+  static const GEnumValue values[] = {
+      {GST_STEREO_DEPTH_CANOPY_OFF, "The colour mask is the canopy (a lab, one tree)", "off"},
+      {GST_STEREO_DEPTH_CANOPY_TREE, "The tree in front, decided in 3D", "tree"},
+      {GST_STEREO_DEPTH_CANOPY_ROW, "The near row's canopy in view (hedgerows, fruit walls)",
+       "row"},
+      {0, nullptr, nullptr},
+  };
+  if (g_once_init_enter(&type)) {
+    GType t = g_enum_register_static("GstStereoDepthCanopy", values);
+    g_once_init_leave(&type, t);
+  }
+  return type;
+}
+
+#define GST_TYPE_STEREO_DEPTH_GROUND (gst_stereo_depth_ground_get_type())
+static GType gst_stereo_depth_ground_get_type(void)
+{
+  static GType type = 0;
+  static const GEnumValue values[] = {
+      {int(GroundModel::Off), "No ground plane", "off"},
+      {int(GroundModel::Fit), "A plane fitted to the vegetation's points (grass)", "fit"},
+      {int(GroundModel::Rig), "The plane camera-height below the rig, pitched by camera-pitch",
+       "rig"},
+      {0, nullptr, nullptr},
+  };
+  if (g_once_init_enter(&type)) {
+    GType t = g_enum_register_static("GstStereoDepthGround", values);
+    g_once_init_leave(&type, t);
+  }
+  return type;
+}
+
 #define DEFAULT_MODE GST_STEREO_DEPTH_MODE_SPARSE
+#define DEFAULT_CANOPY GST_STEREO_DEPTH_CANOPY_TREE
 #define DEFAULT_DENSIFY TRUE
 #define DEFAULT_POST_MESSAGES TRUE
 
@@ -136,6 +180,14 @@ enum {
   PROP_DENSIFY_STEP,
   PROP_EDGE_BAND,
   PROP_EDGE_STEP,
+  PROP_CANOPY,
+  PROP_ZONE_NEAR,
+  PROP_ZONE_FAR,
+  PROP_MIN_HEIGHT,
+  PROP_MAX_HEIGHT,
+  PROP_GROUND,
+  PROP_CAMERA_HEIGHT,
+  PROP_CAMERA_PITCH,
 };
 
 namespace {
@@ -145,6 +197,8 @@ struct Settings {
   DenseParams dense; // dense.filter is the depth cleaning of both modes
   bool densify = DEFAULT_DENSIFY;
   DensifyParams grid;
+  GstStereoDepthCanopy canopy = DEFAULT_CANOPY;
+  CanopyParams zone;
   bool post_messages = DEFAULT_POST_MESSAGES;
 };
 
@@ -155,6 +209,7 @@ struct State {
   GstVideoInfo info;
   bool info_set = false;
   bool warned_no_densify = false; // the reason densification is skipped was said once
+  bool warned_no_canopy = false;  // the reason the 3D canopy is skipped was said once
 };
 
 /* What one buffer gives: the points, their figures and (dense) the depth map. */
@@ -163,6 +218,8 @@ struct Output {
   GstTreeStereoDepthStats stats{};
   GstBuffer *depth_map = nullptr; // owned until attached
   cv::Rect box;
+  bool has_canopy = false;        // the 3D canopy was decided
+  CanopyResult canopy;
 };
 
 } // namespace
@@ -207,14 +264,7 @@ static void fill_stats(const DepthStats &s, GstTreeStereoDepthStats *out)
   out->p95_z_mm = s.p95_mm;
   out->accept_lo_mm = s.accept_lo_mm;
   out->accept_hi_mm = s.accept_hi_mm;
-}
-
-static std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &pts)
-{
-  std::vector<GstTreeStereoPoint> out(pts.size());
-  for (std::size_t i = 0; i < pts.size(); i++)
-    out[i] = {pts[i].x, pts[i].y, pts[i].z, pts[i].match_index, pts[i].valid ? TRUE : FALSE};
-  return out;
+  out->dropped_zone = guint(s.dropped_zone);
 }
 
 /* Says once why densify=TRUE does nothing on this stream. */
@@ -260,14 +310,92 @@ static std::vector<StereoMatch> grid_matches(GstStereoDepth *self, GstBuffer *bu
                          treestereo::gst::view_mat(mat, RIGHT, 2), sil.get().mask, seeds, p);
 }
 
+/* Says once why canopy=tree/row does nothing on this stream. */
+static void warn_no_canopy(GstStereoDepth *self, const char *why)
+{
+  if (self->state->warned_no_canopy)
+    return;
+  self->state->warned_no_canopy = true;
+  GST_ELEMENT_WARNING(self, STREAM, FAILED,
+                      ("canopy: %s; the colour mask is taken as the canopy.", why), (nullptr));
+}
+
+/* The 3D canopy and its points (false when it cannot run on this buffer: then the colour mask
+ * stands for the canopy, as with canopy=off). */
+static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
+                            const std::vector<StereoMatch> &seeds, const StereoGeometry &g,
+                            const Settings &s, Output &out)
+{
+  State *st = self->state;
+  if (!s.densify) {
+    warn_no_canopy(self, "it needs densify=true");
+    return false;
+  }
+  if (!st->info_set || treestereo::gst::n_views_of(&st->info) != 2) {
+    warn_no_canopy(self, "the frames are not side-by-side stereo pairs");
+    return false;
+  }
+  const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
+  if (!veg || veg->n_views < 1) {
+    warn_no_canopy(self, "no vegetation meta on the buffer (put exgsegment upstream)");
+    return false;
+  }
+  const GstTreeStereoVegetationView *lv = &veg->views[LEFT];
+  treestereo::gst::MappedSilhouette sil(lv);
+  if (lv->present && sil.get().mask.empty()) {
+    warn_no_canopy(self, "the vegetation meta carries no mask");
+    return false;
+  }
+  CanopyDepthParams p;
+  p.canopy = s.zone;
+  p.canopy.mode = s.canopy == GST_STEREO_DEPTH_CANOPY_ROW ? CanopyMode::Row : CanopyMode::Tree;
+  p.grid = s.grid;
+  p.filter = s.dense.filter;
+  out.has_canopy = true;
+  if (!lv->present) { // no vegetation: no canopy, said so
+    out.canopy = CanopyResult();
+    out.canopy.silhouette.mask = cv::Mat::zeros(g.view_size, CV_8U);
+    DepthResult r = triangulate_matches(seeds, g, s.dense.filter);
+    out.points = treestereo::gst::to_gst_points(r.points);
+    fill_stats(r.stats, &out.stats);
+    return true;
+  }
+  treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
+  if (!frame.ok())
+    throw std::runtime_error("could not map the frame for the 3D canopy");
+  const cv::Mat mat = frame.mat();
+  p.grid.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
+  CanopyDepth c = canopy_depth(treestereo::gst::view_mat(mat, LEFT, 2),
+                               treestereo::gst::view_mat(mat, RIGHT, 2), sil.get().mask, seeds, g,
+                               p);
+  for (std::size_t i = c.n_seeds; i < c.depth.points.size(); i++) {
+    const StereoMatch &m = c.matches[i];
+    c.depth.points[i].match_index =
+        std::uint32_t(std::lround(m.yl)) * std::uint32_t(g.view_size.width) +
+        std::uint32_t(std::lround(m.xl));
+  }
+  out.points = treestereo::gst::to_gst_points(c.depth.points);
+  fill_stats(c.depth.stats, &out.stats);
+  out.stats.n_grid = guint(c.matches.size() - c.n_seeds);
+  const CanopyResult &cr = c.canopy;
+  GST_DEBUG_OBJECT(self,
+                   "canopy %s: zone %.0f-%.0f mm, ground %s (n %.3f %.3f %.3f, d %.0f mm, %zu "
+                   "inliers), %d segments, x %.0f..%.0f mm, %zu canopy points, %zu coarse, %zu "
+                   "seam px",
+                   cr.present ? "present" : "absent", cr.near_mm, cr.far_mm,
+                   cr.ground.found ? "found" : "none", cr.ground.normal[0], cr.ground.normal[1],
+                   cr.ground.normal[2], cr.ground.d, cr.ground.inliers, cr.n_segments, cr.left_mm,
+                   cr.right_mm, cr.n_canopy_points, c.coarse, cr.n_seam_pixels);
+  out.canopy = std::move(c.canopy);
+  return true;
+}
+
 static void sparse_depth(GstStereoDepth *self, GstBuffer *buf, const GstTreeStereoMatchesMeta *mm,
                          const StereoGeometry &g, const Settings &s, Output &out)
 {
-  std::vector<StereoMatch> matches(mm->n_matches);
-  for (guint i = 0; i < mm->n_matches; i++) {
-    const GstTreeStereoMatch &m = mm->matches[i];
-    matches[i] = {m.xl, m.yl, m.xr, m.yr, m.score};
-  }
+  std::vector<StereoMatch> matches = treestereo::gst::matches_from_meta(mm);
+  if (s.canopy != GST_STEREO_DEPTH_CANOPY_OFF && canopy_depth_of(self, buf, matches, g, s, out))
+    return;
   const std::vector<StereoMatch> grid =
       s.densify ? grid_matches(self, buf, matches, s) : std::vector<StereoMatch>();
   matches.insert(matches.end(), grid.begin(), grid.end());
@@ -277,7 +405,7 @@ static void sparse_depth(GstStereoDepth *self, GstBuffer *buf, const GstTreeSter
     r.points[i].match_index = std::uint32_t(std::lround(m.yl)) * std::uint32_t(g.view_size.width) +
                               std::uint32_t(std::lround(m.xl));
   }
-  out.points = to_gst_points(r.points);
+  out.points = treestereo::gst::to_gst_points(r.points);
   fill_stats(r.stats, &out.stats);
   out.stats.n_grid = guint(grid.size());
 }
@@ -329,7 +457,7 @@ static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g,
   const cv::Mat right =
       treestereo::gst::gray_view(treestereo::gst::view_mat(mat, RIGHT, 2), layout);
   const DenseResult r = dense_depth(left, right, sil.get().mask, box, g, s.dense);
-  out.points = to_gst_points(r.points);
+  out.points = treestereo::gst::to_gst_points(r.points);
   fill_stats(r.stats, &out.stats);
   out.box = r.box;
   if (!r.depth_mm.empty())
@@ -361,14 +489,22 @@ static void attach_and_post(GstStereoDepth *self, GstBuffer *buf, const Settings
                                               guint(out.box.width) * 2);
     gst_clear_buffer(&out.depth_map);
   }
+  const GstTreeStereoCanopyMeta *cm =
+      out.has_canopy ? treestereo::gst::add_canopy_meta(
+                           buf, out.canopy,
+                           s.canopy == GST_STEREO_DEPTH_CANOPY_ROW ? CanopyMode::Row
+                                                                   : CanopyMode::Tree)
+                     : nullptr;
   GST_LOG_OBJECT(self, "%u points, %u valid, median %.1f mm", out.stats.n_points,
                  out.stats.n_valid, out.stats.median_z_mm);
   if (!s.post_messages)
     return;
   GstTreeStereoTimes times;
   gst_tree_stereo_times_from_buffer(&times, buf, &GST_BASE_TRANSFORM(self)->segment);
-  treestereo::gst::post_element_message(
-      GST_ELEMENT(self), gst_tree_stereo_depth_message_structure(pm->dense, &pm->stats, &times));
+  GstStructure *msg = gst_tree_stereo_depth_message_structure(pm->dense, &pm->stats, &times);
+  if (cm)
+    gst_tree_stereo_canopy_message_add(msg, cm);
+  treestereo::gst::post_element_message(GST_ELEMENT(self), msg);
 }
 
 static GstFlowReturn gst_stereo_depth_transform_ip(GstBaseTransform *trans, GstBuffer *buf)
@@ -433,6 +569,14 @@ static void gst_stereo_depth_set_property(GObject *object, guint prop_id, const 
   case PROP_DENSIFY_STEP: s.grid.step = g_value_get_int(value); break;
   case PROP_EDGE_BAND: s.grid.edge_band = g_value_get_double(value); break;
   case PROP_EDGE_STEP: s.grid.edge_step = g_value_get_int(value); break;
+  case PROP_CANOPY: s.canopy = GstStereoDepthCanopy(g_value_get_enum(value)); break;
+  case PROP_ZONE_NEAR: s.zone.near_mm = g_value_get_double(value); break;
+  case PROP_ZONE_FAR: s.zone.far_mm = g_value_get_double(value); break;
+  case PROP_MIN_HEIGHT: s.zone.min_height_mm = g_value_get_double(value); break;
+  case PROP_MAX_HEIGHT: s.zone.max_height_mm = g_value_get_double(value); break;
+  case PROP_GROUND: s.zone.ground = GroundModel(g_value_get_enum(value)); break;
+  case PROP_CAMERA_HEIGHT: s.zone.camera_height_mm = g_value_get_double(value); break;
+  case PROP_CAMERA_PITCH: s.zone.camera_pitch_deg = g_value_get_double(value); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
 }
@@ -462,6 +606,14 @@ static void gst_stereo_depth_get_property(GObject *object, guint prop_id, GValue
   case PROP_DENSIFY_STEP: g_value_set_int(value, s.grid.step); break;
   case PROP_EDGE_BAND: g_value_set_double(value, s.grid.edge_band); break;
   case PROP_EDGE_STEP: g_value_set_int(value, s.grid.edge_step); break;
+  case PROP_CANOPY: g_value_set_enum(value, s.canopy); break;
+  case PROP_ZONE_NEAR: g_value_set_double(value, s.zone.near_mm); break;
+  case PROP_ZONE_FAR: g_value_set_double(value, s.zone.far_mm); break;
+  case PROP_MIN_HEIGHT: g_value_set_double(value, s.zone.min_height_mm); break;
+  case PROP_MAX_HEIGHT: g_value_set_double(value, s.zone.max_height_mm); break;
+  case PROP_GROUND: g_value_set_enum(value, int(s.zone.ground)); break;
+  case PROP_CAMERA_HEIGHT: g_value_set_double(value, s.zone.camera_height_mm); break;
+  case PROP_CAMERA_PITCH: g_value_set_double(value, s.zone.camera_pitch_deg); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
 }
@@ -571,6 +723,52 @@ static void gst_stereo_depth_class_init(GstStereoDepthClass *klass)
               "sparse with densify: the edge bands' grid step in px; 0 = automatic, the view's "
               "width / 648 and at least 2 (2 px at 1296 wide, 4 at 2592)",
               0, 1024, DensifyParams{}.edge_step);
+  const CanopyParams cz;
+  g_object_class_install_property(
+      gobject_class, PROP_CANOPY,
+      g_param_spec_enum("canopy", "Canopy",
+                        "sparse with densify: which vegetation is the canopy, decided in 3D: "
+                        "tree (the tree in front), row (the near row in view), off (all the "
+                        "colour mask)",
+                        GST_TYPE_STEREO_DEPTH_CANOPY, DEFAULT_CANOPY, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_ZONE_NEAR,
+      g_param_spec_double("zone-near", "Spray zone near",
+                          "The spray zone's near depth (mm); zone-near and zone-far both 0: the "
+                          "near row is found from the data (the nearest dominant depth layer)",
+                          0.0, 1e6, cz.near_mm, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_ZONE_FAR,
+      g_param_spec_double("zone-far", "Spray zone far",
+                          "The spray zone's far depth (mm); 0 with zone-near set: no far limit",
+                          0.0, 1e6, cz.far_mm, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_MIN_HEIGHT,
+      g_param_spec_double("min-height", "Minimum height",
+                          "Canopy starts this high above the ground (mm): lower vegetation is "
+                          "grass (needs a ground plane)",
+                          -1e5, 1e5, cz.min_height_mm, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_MAX_HEIGHT,
+      g_param_spec_double("max-height", "Maximum height",
+                          "Canopy ends this high above the ground (mm); 0 = no limit", 0.0, 1e5,
+                          cz.max_height_mm, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_GROUND,
+      g_param_spec_enum("ground", "Ground",
+                        "The ground plane: fit (to the vegetation's points), rig (camera-height "
+                        "and camera-pitch), off",
+                        GST_TYPE_STEREO_DEPTH_GROUND, int(cz.ground), RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_CAMERA_HEIGHT,
+      g_param_spec_double("camera-height", "Camera height",
+                          "ground=rig: the left camera's optical centre above the ground (mm)",
+                          0.0, 1e5, cz.camera_height_mm, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_CAMERA_PITCH,
+      g_param_spec_double("camera-pitch", "Camera pitch",
+                          "ground=rig: the camera's pitch (degrees, positive = looking down)",
+                          -80.0, 80.0, cz.camera_pitch_deg, RW_PLAYING));
   g_object_class_install_property(
       gobject_class, PROP_POST_MESSAGES,
       g_param_spec_boolean("post-messages", "Post messages",
@@ -585,6 +783,8 @@ static void gst_stereo_depth_class_init(GstStereoDepthClass *klass)
       "depth range and a median/MAD outlier cut",
       "treestereo developers");
   gst_type_mark_as_plugin_api(GST_TYPE_STEREO_DEPTH_MODE, GstPluginAPIFlags(0));
+  gst_type_mark_as_plugin_api(GST_TYPE_STEREO_DEPTH_CANOPY, GstPluginAPIFlags(0));
+  gst_type_mark_as_plugin_api(GST_TYPE_STEREO_DEPTH_GROUND, GstPluginAPIFlags(0));
 
   bt_class->set_caps = gst_stereo_depth_set_caps;
   bt_class->transform_ip = gst_stereo_depth_transform_ip;

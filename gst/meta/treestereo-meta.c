@@ -979,7 +979,8 @@ gst_tree_stereo_depth_message_structure (gboolean dense, const GstTreeStereoDept
       "p95-depth", G_TYPE_DOUBLE, st->p95_z_mm,
       "accept-min-depth", G_TYPE_DOUBLE, st->accept_lo_mm,
       "accept-max-depth", G_TYPE_DOUBLE, st->accept_hi_mm,
-      "grid-points", G_TYPE_UINT, st->n_grid, NULL);
+      "grid-points", G_TYPE_UINT, st->n_grid,
+      "dropped-zone", G_TYPE_UINT, st->dropped_zone, NULL);
   set_times (s, times);
   return s;
 }
@@ -1010,7 +1011,8 @@ gst_tree_stereo_depth_message_parse (const GstStructure * s, gboolean * dense,
       "p95-depth", G_TYPE_DOUBLE, &st->p95_z_mm,
       "accept-min-depth", G_TYPE_DOUBLE, &st->accept_lo_mm,
       "accept-max-depth", G_TYPE_DOUBLE, &st->accept_hi_mm,
-      "grid-points", G_TYPE_UINT, &st->n_grid, NULL) && get_times (s, times);
+      "grid-points", G_TYPE_UINT, &st->n_grid,
+      "dropped-zone", G_TYPE_UINT, &st->dropped_zone, NULL) && get_times (s, times);
 }
 
 /* Field names of the metrics, raw ("distance") or smoothed ("smoothed-distance"). */

@@ -59,6 +59,12 @@ void require(bool ok, const char *field, const char *range)
 }
 
 constexpr double kDeg = CV_PI / 180.0;
+// A piece of a split region smaller than this share of the canopy is a crumb.
+constexpr double kMinPieceShare = 0.005;
+// Mask value of a pixel not yet decided.
+constexpr uchar kUnknown = 128;
+// A fitted ground lies at least this far below the camera.
+constexpr double kMinCameraHeightMm = 150.0;
 // The seam test: the nearer surface's patch must correlate at least this well to win.
 constexpr double kSeamMinScore = 0.6;
 
@@ -105,8 +111,9 @@ std::vector<cv::Vec2i> occupied_runs(const std::vector<double> &hist, double min
 }
 
 // The ground plane by RANSAC over the points (deterministic), then least squares on the inliers.
-// Nothing may lie under the ground: a candidate plane with more than 2 % of the points well
-// below it (a slice through a canopy) is refused.
+// Nothing may lie under the ground and the camera stands above it: a candidate plane with more
+// than 2 % of the points well below it, or above the camera (a slice through a canopy), is
+// refused.
 GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
                        const cv::Vec3d &up)
 {
@@ -127,8 +134,17 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
   cv::Vec3d best_n;
   double best_d = 0;
   const std::size_t min_inliers = std::max<std::size_t>(30, n / 20);
-  for (int it = 0; it < 300; ++it) {
-    const cv::Point3d &a = X[next() % n], &b = X[next() % n], &c = X[next() % n];
+  // Samples come from the points below the camera (the ground is there on a rig that looks
+  // sideways, level or pitched down).
+  std::vector<std::size_t> low;
+  for (std::size_t i = 0; i < n; ++i)
+    if (cv::Vec3d(X[i].x, X[i].y, X[i].z).dot(up) < 0)
+      low.push_back(i);
+  if (low.size() < 3)
+    return best;
+  for (int it = 0; it < 500; ++it) {
+    const cv::Point3d &a = X[low[next() % low.size()]], &b = X[low[next() % low.size()]],
+                      &c = X[low[next() % low.size()]];
     cv::Vec3d nn = cv::Vec3d(b - a).cross(cv::Vec3d(c - a));
     const double len = cv::norm(nn);
     if (len < 1e-9)
@@ -139,6 +155,8 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
     if (nn.dot(up) < cos_tilt)
       continue;
     const double d = -nn.dot(cv::Vec3d(a.x, a.y, a.z));
+    if (d < kMinCameraHeightMm) // the camera stands above its ground
+      continue;
     std::size_t in = 0, under = 0;
     for (const cv::Point3d &q : X) {
       const double h = nn.dot(cv::Vec3d(q.x, q.y, q.z)) + d;
@@ -202,6 +220,7 @@ void validate(const CanopyParams &p)
   require(p.layer_gap_mm >= p.layer_bin_mm, "layer_gap_mm", "at least layer_bin_mm");
   require(p.max_row_depth_mm >= p.layer_bin_mm, "max_row_depth_mm", "at least layer_bin_mm");
   require(p.min_gap_mm >= 10, "min_gap_mm", "at least 10 mm");
+  require(p.sample_spacing_px >= 0, "sample_spacing_px", ">= 0");
   require(p.seam_half_window >= 0 && p.seam_half_window <= 15, "seam_half_window", "0 to 15 px");
 }
 
@@ -254,7 +273,7 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     X.reserve(use.size());
     for (int i : use)
       X.push_back(P(i));
-    r.ground = fit_ground(X, p, cv::Vec3d(0, -1, 0));
+    r.ground = fit_ground(X, p, up);
   }
   std::vector<int> rest;
   rest.reserve(use.size());
@@ -519,6 +538,11 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       }
       return best;
     };
+    // How far a canopy sample speaks for its surroundings: 1.5 sample spacings.
+    const double spacing = p.sample_spacing_px > 0
+                               ? p.sample_spacing_px
+                               : std::sqrt(double(cv::countNonZero(vegetation)) / double(use.size()));
+    const float reach = float(std::max(4.0, 1.5 * spacing));
     for (int y = 0; y < box.height; ++y) {
       const int *lab = labels.ptr<int>(y + box.y);
       const float *di = d_in.ptr<float>(y), *dout = d_out.ptr<float>(y);
@@ -527,6 +551,12 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       for (int x = 0; x < box.width; ++x) {
         if (kind[std::size_t(lab[x + box.x])] != 2)
           continue;
+        if (di[x] > reach) {
+          // Far from every canopy sample: another class's near it, or nobody's (a surface
+          // without texture, such as mown grass, or a dark gap); decided below.
+          m[x] = dout[x] > reach ? kUnknown : 0;
+          continue;
+        }
         bool in = di[x] <= dout[x];
         if (seam && std::abs(di[x] - dout[x]) < std::max(4.0f, 0.5f * (di[x] + dout[x]))) {
           const float dv_in = disp_in[std::size_t(li[x])], dv_out = disp_out[std::size_t(lo[x])];
@@ -546,9 +576,62 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
           m[x] = 255;
       }
     }
-    // Pieces of the canopy that hold none of its samples (islands the split left behind) go.
-    cv::Mat cl;
-    const int nc = cv::connectedComponents(mask(box), cl, 8, CV_32S);
+    // Pixels no sample reaches are canopy where the canopy encloses them (a hole without
+    // texture in the crown), and not where they reach anything else (grass under the crown).
+    {
+      cv::Mat unknown, ul;
+      cv::compare(mask(box), kUnknown, unknown, cv::CMP_EQ);
+      const int nu = cv::connectedComponents(unknown, ul, 8, CV_32S);
+      std::vector<uchar> open(std::size_t(nu), 0);
+      for (int y = 0; y < box.height; ++y) {
+        const int *u = ul.ptr<int>(y);
+        const uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
+        for (int x = 0; x < box.width; ++x) {
+          if (!u[x])
+            continue;
+          // Open: on the box's border, or beside a pixel that is neither canopy nor unknown.
+          bool o = x == 0 || y == 0 || x == box.width - 1 || y == box.height - 1;
+          for (int k = 0; k < 4 && !o; ++k) {
+            static const int dx[4] = {1, -1, 0, 0}, dy[4] = {0, 0, 1, -1};
+            const uchar v = mask.at<uchar>(y + box.y + dy[k], x + box.x + dx[k]);
+            o = v != 255 && v != kUnknown;
+          }
+          if (o)
+            open[std::size_t(u[x])] = 1;
+          (void)m;
+        }
+      }
+      for (int y = 0; y < box.height; ++y) {
+        const int *u = ul.ptr<int>(y);
+        uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
+        for (int x = 0; x < box.width; ++x)
+          if (u[x])
+            m[x] = open[std::size_t(u[x])] ? 0 : 255;
+      }
+    }
+    // Slivers the split leaves along thin structures (a trunk's edge mixed with the grass
+    // behind it) are no canopy: the split part is opened. Regions that are canopy whole keep
+    // their colour edge untouched.
+    {
+      cv::Mat split(box.size(), CV_8U, cv::Scalar(0));
+      for (int y = 0; y < box.height; ++y) {
+        const int *lab = labels.ptr<int>(y + box.y);
+        const uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
+        uchar *o = split.ptr<uchar>(y);
+        for (int x = 0; x < box.width; ++x)
+          o[x] = kind[std::size_t(lab[x + box.x])] == 2 ? m[x] : 0;
+      }
+      cv::Mat opened;
+      cv::morphologyEx(split, opened, cv::MORPH_OPEN,
+                       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+      cv::Mat removed = split & ~opened;
+      mask(box).setTo(0, removed);
+    }
+    // Pieces of the canopy that hold none of its samples (islands the split left behind) go,
+    // and so do crumbs (less than kMinPieceShare of the canopy pieces' area: a few pixels along
+    // a trunk's edge where a trunk point fell).
+    cv::Mat cl, stats, centroids;
+    const int nc = cv::connectedComponentsWithStats(mask(box), cl, stats, centroids, 8, CV_32S);
     std::vector<uchar> keep(std::size_t(nc), 0);
     for (int i : use)
       if (r.classes[std::size_t(i)] == PointClass::Canopy) {
@@ -557,6 +640,13 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
         if (cv::Rect(cv::Point(0, 0), box.size()).contains(px))
           keep[std::size_t(cl.at<int>(px))] = 1;
       }
+    double kept_area = 0;
+    for (int k = 1; k < nc; ++k)
+      if (keep[std::size_t(k)])
+        kept_area += stats.at<int>(k, cv::CC_STAT_AREA);
+    for (int k = 1; k < nc; ++k)
+      if (stats.at<int>(k, cv::CC_STAT_AREA) < kMinPieceShare * kept_area)
+        keep[std::size_t(k)] = 0;
     for (int y = 0; y < box.height; ++y) {
       const int *c = cl.ptr<int>(y);
       const int *lab = labels.ptr<int>(y + box.y);
@@ -568,6 +658,98 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
   }
   r.present = describe_silhouette(r.silhouette, cv::Rect(cv::Point(0, 0), size), 1.0);
   return r;
+}
+
+CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
+                         const std::vector<StereoMatch> &seeds, const StereoGeometry &g,
+                         const CanopyDepthParams &p)
+{
+  if (p.coarse_points < 1)
+    throw std::runtime_error("canopy_depth: coarse_points must be at least 1");
+  CanopyDepth out;
+  // 1. Everything green, coarsely: the seeds and a coarse grid, triangulated without the
+  // outlier cut (the next row is no outlier here, it is what the canopy is told from).
+  DensifyParams coarse = p.grid;
+  coarse.step = 0;
+  coarse.target_points = p.coarse_points;
+  coarse.edge_band = 0;
+  DensifyStats coarse_stats;
+  const std::vector<StereoMatch> grid0 =
+      densify_matches(left, right, vegetation, seeds, coarse, &coarse_stats);
+  out.coarse = grid0.size();
+  DepthParams range = p.filter;
+  range.outlier_k = 0;
+  std::vector<PixelPoint> pts;
+  pts.reserve(seeds.size() + grid0.size());
+  auto add = [&](const StereoMatch &m) {
+    PixelPoint q;
+    q.px = cv::Point2f(m.xl, m.yl);
+    q.p.valid = triangulate_point(g, m.xl, m.yl, m.disparity(), q.p);
+    pts.push_back(q);
+  };
+  for (const StereoMatch &m : seeds)
+    add(m);
+  for (const StereoMatch &m : grid0)
+    add(m);
+  {
+    std::vector<Point3> p3(pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      p3[i] = pts[i].p;
+    filter_depths(p3, range);
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      pts[i].p.valid = p3[i].valid;
+  }
+  CanopyParams cp = p.canopy;
+  if (cp.sample_spacing_px <= 0 && coarse_stats.step > 0)
+    cp.sample_spacing_px = coarse_stats.step;
+  out.canopy = select_canopy(vegetation, pts, g, cp, left, right, p.grid.order);
+
+  // 2. The canopy alone, densely: seeded by the matches on it.
+  out.matches = seeds;
+  out.n_seeds = seeds.size();
+  if (out.canopy.present) {
+    std::vector<StereoMatch> on;
+    for (std::size_t i = 0; i < seeds.size(); ++i)
+      if (out.canopy.classes[i] == PointClass::Canopy)
+        on.push_back(seeds[i]);
+    // Too few SIFT matches on the canopy: the coarse grid's canopy points bound the search.
+    if (int(on.size()) < p.grid.min_seeds)
+      for (std::size_t i = 0; i < grid0.size(); ++i)
+        if (out.canopy.classes[seeds.size() + i] == PointClass::Canopy)
+          on.push_back(grid0[i]);
+    const std::vector<StereoMatch> grid =
+        densify_matches(left, right, out.canopy.silhouette.mask, on, p.grid);
+    out.matches.insert(out.matches.end(), grid.begin(), grid.end());
+  }
+
+  // 3. Every point; those off the canopy are out of the zone.
+  DepthResult &r = out.depth;
+  r.points.resize(out.matches.size());
+  std::size_t no_depth = 0, zone = 0;
+  const cv::Mat &mask = out.canopy.silhouette.mask;
+  for (std::size_t i = 0; i < out.matches.size(); ++i) {
+    const StereoMatch &m = out.matches[i];
+    Point3 &q = r.points[i];
+    q.match_index = std::uint32_t(i);
+    q.valid = triangulate_point(g, m.xl, m.yl, m.disparity(), q);
+    if (!q.valid) {
+      ++no_depth;
+      continue;
+    }
+    const int x = int(std::lround(m.xl)), y = int(std::lround(m.yl));
+    const bool on_mask = out.canopy.present && x >= 0 && y >= 0 && x < mask.cols &&
+                         y < mask.rows && mask.at<uchar>(y, x);
+    if (!on_mask || q.z < out.canopy.near_mm || q.z > out.canopy.far_mm ||
+        (i < out.n_seeds && out.canopy.classes[i] != PointClass::Canopy)) {
+      q.valid = false;
+      ++zone;
+    }
+  }
+  r.stats = filter_depths(r.points, p.filter);
+  r.stats.dropped_disparity = no_depth;
+  r.stats.dropped_zone = zone;
+  r.stats.n_points = r.points.size();
+  return out;
 }
 
 double depth_support(const cv::Mat &mask, const std::vector<cv::Point2f> &px, double radius_px)

@@ -16,14 +16,17 @@
 //     segment (a hedgerow, a fruit wall).
 //  4. The mask: inside a connected region of the vegetation mask whose depth samples all agree,
 //     the colour edge is kept as it is. Where samples of the selected canopy and of anything
-//     else (the next row behind, a neighbour) share a region, each pixel goes to the nearest
-//     sample's class, and along that seam each pixel is tested again by photo-consistency: its
-//     patch is compared with the right view at the canopy's disparity and at the other class's
-//     disparity, and the better one wins.
+//     else (the next row behind, a neighbour, the grass) share a region, each pixel goes to the
+//     nearest sample's class, and along that seam each pixel is tested again by
+//     photo-consistency: its patch is compared with the right view at the canopy's disparity
+//     and at the other class's disparity, and the better one wins. Pixels that no sample
+//     reaches (1.5 sample spacings) are canopy only where the canopy encloses them.
 //
 // No shape model and no ground truth: only the views, the colour mask and the 3D points.
 #pragma once
 
+#include "treestereo/densify.hpp"
+#include "treestereo/depth.hpp"
 #include "treestereo/types.hpp"
 
 #include <opencv2/core.hpp>
@@ -61,6 +64,9 @@ struct CanopyParams {
   double max_row_depth_mm = 1600;
   // Along the row: empty stretches at least this long separate trees (mode Tree).
   double min_gap_mm = 80;
+  // The spacing of the points' grid (px): a canopy point speaks for the vegetation within 1.5
+  // spacings of it. 0 = estimated as sqrt(vegetation area / points).
+  double sample_spacing_px = 0;
   // The seam test: half window of the patches (px); 0 = off (nearest sample only).
   int seam_half_window = 3;
 };
@@ -116,6 +122,36 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
                            const StereoGeometry &geometry, const CanopyParams &params,
                            const cv::Mat &left = cv::Mat(), const cv::Mat &right = cv::Mat(),
                            ChannelOrder order = ChannelOrder());
+
+// ---- The canopy's depth: densification, the 3D canopy, densification of the canopy ----
+//
+// What stereodepth runs with its canopy on: the seeds (SIFT's matches over all the vegetation)
+// and a coarse grid of the whole vegetation mask (coarse_points grid points) are triangulated
+// and select_canopy() decides the canopy; then the canopy alone is densified as densify_matches()
+// does (`grid`), seeded by the matches that fell on it, and every point is triangulated and
+// cleaned (`filter`). Points off the canopy's mask or outside its depth zone are kept with
+// valid = false and counted in stats.dropped_zone.
+struct CanopyDepthParams {
+  CanopyParams canopy;
+  DensifyParams grid;
+  DepthParams filter;
+  int coarse_points = 1200;
+};
+
+struct CanopyDepth {
+  CanopyResult canopy;
+  // The seeds followed by the canopy's grid matches, and one point per match (same order).
+  std::vector<StereoMatch> matches;
+  std::size_t n_seeds = 0;
+  DepthResult depth;
+  std::size_t coarse = 0; // grid points of the coarse pass
+};
+
+// `left`, `right`: the rectified views (grey, or colour as params.grid.order says);
+// `vegetation`: the left view's colour mask. Throws std::runtime_error on bad input.
+CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
+                         const std::vector<StereoMatch> &seeds, const StereoGeometry &geometry,
+                         const CanopyDepthParams &params);
 
 // The share of the mask's pixels within radius_px of a point: how much of a silhouette has depth
 // support. 0 for an empty mask.

@@ -44,6 +44,8 @@ struct DepthStats {
   std::size_t dropped_disparity = 0; // non-positive effective disparity (d - doffs <= 0)
   std::size_t dropped_range = 0;    // outside [min_depth_mm, max_depth_mm]
   std::size_t dropped_outlier = 0;  // outside the median/MAD band
+  std::size_t dropped_zone = 0;     // off the 3D canopy (canopy_depth(): another tree, the
+                                    // next row, the ground), before the other cuts
   double median_mm = 0, mad_mm = 0, p05_mm = 0, p95_mm = 0;
   // The accepted depth interval after range and outlier cuts (mm); 0/0 when nothing is kept.
   double accept_lo_mm = 0, accept_hi_mm = 0;

@@ -239,6 +239,8 @@ typedef struct {
  * @accept_hi_mm: farthest depth accepted after the range and outlier cuts (0 when none kept)
  * @n_grid: of @n_points, how many are grid points of stereodepth's densification; they are
  *   the last @n_grid points of the points meta (the first @n_points - @n_grid are the matches')
+ * @dropped_zone: dropped as off the 3D canopy (another tree, the next row, the ground; see
+ *   #GstTreeStereoCanopyMeta), before the range and outlier cuts
  */
 typedef struct {
   guint n_points;
@@ -253,6 +255,7 @@ typedef struct {
   gdouble accept_lo_mm;
   gdouble accept_hi_mm;
   guint n_grid;
+  guint dropped_zone;
 } GstTreeStereoDepthStats;
 
 /**
@@ -586,7 +589,7 @@ gboolean gst_tree_stereo_match_message_parse (const GstStructure *s,
     GstTreeStereoMatchStats *stats, GstTreeStereoTimes *times);
 
 /* stereodepth: "mode" ("sparse"/"dense"), "points", "valid", "dropped-disparity",
- * "dropped-range", "dropped-outlier", "median-depth", "mad-depth", "p05-depth", "p95-depth",
+ * "dropped-range", "dropped-outlier", "dropped-zone", "median-depth", "mad-depth", "p05-depth", "p95-depth",
  * "accept-min-depth", "accept-max-depth" (mm), "grid-points". */
 GstStructure *gst_tree_stereo_depth_message_structure (gboolean dense,
     const GstTreeStereoDepthStats *stats, const GstTreeStereoTimes *times);
