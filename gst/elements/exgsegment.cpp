@@ -15,6 +15,11 @@
  * canopy was found, and posts an `exgsegment` element message with the figures per view
  * (see docs/elements/exgsegment.md for every field).
  *
+ * #exgsegment:keep is `all` by default: colour says "plant", and in an orchard the neighbours,
+ * the next row and the grass are plants too, so the mask holds every vegetation region and
+ * stereodepth's #stereodepth:canopy decides in 3D which of it is the tree in front. `largest`
+ * keeps the single largest region (one tree on a clear background, with stereodepth canopy=off).
+ *
  * ## Example launch lines
  * |[
  * gst-launch-1.0 -m treetestsrc num-buffers=3 ! exgsegment ! fakesink
@@ -198,8 +203,11 @@ static GType gst_exg_segment_keep_get_type(void)
 {
   static GType type = 0;
   static const GEnumValue values[] = {
-      {int(KeepMode::Largest), "The largest region (the tree in front)", "largest"},
-      {int(KeepMode::All), "Every region of at least min-area pixels (a hedge row)", "all"},
+      {int(KeepMode::Largest), "The largest region (one tree on a clear background)",
+       "largest"},
+      {int(KeepMode::All),
+       "Every region of at least min-area pixels (all the vegetation; depth picks the canopy)",
+       "all"},
       {0, nullptr, nullptr},
   };
   if (g_once_init_enter(&type)) {
@@ -506,7 +514,9 @@ static void gst_exg_segment_class_init(GstExgSegmentClass *klass)
                            d.unmix_edges, flags));
   g_object_class_install_property(
       gobject_class, PROP_KEEP,
-      g_param_spec_enum("keep", "Keep", "Which connected regions make the canopy",
+      g_param_spec_enum("keep", "Keep",
+                        "Which connected regions make the vegetation mask: all (default; "
+                        "stereodepth's canopy picks the tree in 3D) or the largest",
                         gst_exg_segment_keep_get_type(), int(d.keep), flags));
   g_object_class_install_property(
       gobject_class, PROP_POST_MESSAGES,

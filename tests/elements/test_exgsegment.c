@@ -370,7 +370,8 @@ GST_END_TEST;
 
 GST_START_TEST (test_keep_all_two_regions)
 {
-  /* two discs in the left view; keep=all takes both, keep=largest only the bigger */
+  /* two discs in the left view; keep=all (the default) takes both, keep=largest only the
+   * bigger */
   static const Disc small = { 260.0, 180.0, 30.0 };
   Rig rig;
   GstBuffer *in, *out;
@@ -382,7 +383,7 @@ GST_START_TEST (test_keep_all_two_regions)
   const gdouble a_big = G_PI * LEFT_DISC.r * LEFT_DISC.r, a_small = G_PI * small.r * small.r;
 
   rig_setup (&rig, "RGB", 2);
-  g_object_set (rig.h->element, "post-messages", FALSE, NULL);
+  g_object_set (rig.h->element, "keep", 0 /* largest */ , "post-messages", FALSE, NULL);
   in = make_frame (GST_VIDEO_FORMAT_RGB, 2, discs, FALSE, 0);
   /* paint the second disc into the left view */
   gst_video_info_set_format (&info, GST_VIDEO_FORMAT_RGB, 2 * W, H);
@@ -530,7 +531,7 @@ GST_START_TEST (test_invalid_property_values)
       &threshold, "min-area", &min_area, "post-messages", &post, "reconstruct",
       &reconstruct, NULL);
   fail_unless_equals_int (index, GST_TREE_STEREO_INDEX_EXG_NORM);
-  fail_unless_equals_int (keep, 0);
+  fail_unless_equals_int (keep, 1);   /* all: depth decides the canopy */
   fail_unless_equals_int (morph, 5);
   fail_unless_equals_float (threshold, -1.0);
   fail_unless_equals_float (min_area, 64.0);
@@ -564,10 +565,10 @@ GST_START_TEST (test_invalid_property_values)
     g_value_unset (&v);
   }
   gst_util_set_object_arg (G_OBJECT (e), "index", "exg-exr-norm");
-  gst_util_set_object_arg (G_OBJECT (e), "keep", "all");
+  gst_util_set_object_arg (G_OBJECT (e), "keep", "largest");
   g_object_get (e, "index", &index, "keep", &keep, NULL);
   fail_unless_equals_int (index, GST_TREE_STEREO_INDEX_EXG_EXR_NORM);
-  fail_unless_equals_int (keep, 1);
+  fail_unless_equals_int (keep, 0);
   gst_object_unref (e);
 }
 

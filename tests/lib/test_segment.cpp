@@ -186,6 +186,7 @@ TEST(Segment, KeepLargestOrAllAndMinArea)
   SegmentParams p;
   p.morph_size = 0; // the specks survive thresholding; only min_area removes them
   p.min_area = 50;
+  EXPECT_EQ(p.keep, KeepMode::All); // the default: all the vegetation, depth picks the canopy
   p.keep = KeepMode::Largest;
   Silhouette s = segment_vegetation(img, p);
   EXPECT_EQ(s.n_regions, 1);

@@ -37,8 +37,8 @@ std::vector<VegIndex> all_veg_indices();
 
 // Which connected regions of the thresholded mask make the canopy.
 enum class KeepMode {
-  Largest, // the single largest region (the tree in front)
-  All,     // every region with at least min_area pixels (a hedge-like row)
+  Largest, // the single largest region (one tree on a clear background)
+  All,     // every region with at least min_area pixels (an orchard: depth picks the canopy)
 };
 const char *keep_mode_name(KeepMode mode);             // "largest", "all"
 KeepMode keep_mode_from_name(const std::string &name); // throws on an unknown name
@@ -89,7 +89,10 @@ struct SegmentParams {
   // unmix_min_contrast of each other (canopy on a green background: no reliable alpha).
   bool unmix_edges = true;
   double unmix_min_contrast = 24.0; // 8-bit levels, Euclidean in RGB
-  KeepMode keep = KeepMode::Largest;
+  // All by default: in an orchard the tree in front touches its neighbours, the next row and
+  // the grass in the image, and the largest colour region may be any of them. The mask holds
+  // all the vegetation and stereodepth's canopy decides in 3D which of it is the canopy.
+  KeepMode keep = KeepMode::All;
   // Regions smaller than this (px, after morphology) are dropped in both keep modes.
   double min_area = 64.0;
   // Contour simplification (px) before the perimeter is measured: removes the staircase of
