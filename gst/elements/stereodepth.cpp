@@ -36,6 +36,15 @@
  *   a vegetation meta the whole left view is matched, unmasked; when the vegetation meta says
  *   there is no canopy nothing is matched and the points meta is empty.
  *
+ * With #stereodepth:canopy `tree` (default) or `row` (mode sparse, densify on) the canopy is
+ * decided in 3D (lib's canopy_depth(): ground plane, near row, the tree in front along the
+ * row; docs/elements/stereodepth.md) and a #GstTreeStereoCanopyMeta is attached; points off it
+ * stay with valid=FALSE, counted in `dropped-zone`. Without side-by-side frames or a vegetation
+ * meta ONE warning says so for densification and the canopy alike; densify=FALSE leaves the
+ * canopy off without a warning (a choice). Canopy settings that cannot run together (ground=rig
+ * without camera-height, zone-far not beyond zone-near, max-height not above min-height) are a
+ * GST_RESOURCE_ERROR_SETTINGS naming the properties.
+ *
  * Both modes need stereorectify's #GstTreeStereoGeometryMeta (missing: an error naming
  * stereorectify). The element works in place and adds a #GstTreeStereoPointsMeta.
  *
@@ -56,6 +65,10 @@
  * - `p05-depth`, `p95-depth`: #gdouble, 5th and 95th percentile of the kept Z, mm
  * - `accept-min-depth`, `accept-max-depth`: #gdouble, the depth interval kept after the range
  *   and outlier cuts, mm (0 when nothing is kept)
+ * - `dropped-zone`: #guint, points off the 3D canopy (another tree, the next row, the ground)
+ * - with the canopy decided in 3D: `canopy-present` (#gboolean), `canopy-mode` ("tree"/"row"),
+ *   `canopy-near`, `canopy-far` (#gdouble, m, the depth zone used), `ground-found`
+ *   (#gboolean), `segments` (#guint, near-row segments along the row), `canopy-points` (#guint)
  * - `timestamp`, `stream-time`, `running-time`: #guint64, ns, of the buffer
  *
  * ## Example launch line
@@ -84,7 +97,9 @@
 
 #include <gst/base/gstbasetransform.h>
 
+#include <cmath>
 #include <mutex>
+#include <string>
 #include <vector>
 
 GST_DEBUG_CATEGORY_STATIC(stereodepth_debug);
@@ -209,7 +224,6 @@ struct State {
   GstVideoInfo info;
   bool info_set = false;
   bool warned_no_densify = false; // the reason densification is skipped was said once
-  bool warned_no_canopy = false;  // the reason the 3D canopy is skipped was said once
 };
 
 /* What one buffer gives: the points, their figures and (dense) the depth map. */
@@ -267,14 +281,22 @@ static void fill_stats(const DepthStats &s, GstTreeStereoDepthStats *out)
   out->dropped_zone = guint(s.dropped_zone);
 }
 
-/* Says once why densify=TRUE does nothing on this stream. */
-static void warn_no_densify(GstStereoDepth *self, const char *why)
+/* Says once why densify=TRUE does nothing on this stream. The same causes stop the 3D canopy
+ * (canopy_depth_of() leaves them to this one warning), so with canopy on it says both. */
+static void warn_no_densify(GstStereoDepth *self, const Settings &s, const char *why)
 {
   if (self->state->warned_no_densify)
     return;
   self->state->warned_no_densify = true;
-  GST_ELEMENT_WARNING(self, STREAM, FAILED, ("densify: %s; the points are the matches' alone.", why),
-                      (nullptr));
+  if (s.canopy != GST_STEREO_DEPTH_CANOPY_OFF)
+    GST_ELEMENT_WARNING(self, STREAM, FAILED,
+                        ("densify and canopy: %s; the points are the matches' alone and the "
+                         "colour mask is taken as the canopy.",
+                         why),
+                        (nullptr));
+  else
+    GST_ELEMENT_WARNING(self, STREAM, FAILED,
+                        ("densify: %s; the points are the matches' alone.", why), (nullptr));
 }
 
 /* The grid matches of densify (empty when it cannot run on this buffer). */
@@ -284,12 +306,12 @@ static std::vector<StereoMatch> grid_matches(GstStereoDepth *self, GstBuffer *bu
 {
   State *st = self->state;
   if (!st->info_set || treestereo::gst::n_views_of(&st->info) != 2) {
-    warn_no_densify(self, "the frames are not side-by-side stereo pairs");
+    warn_no_densify(self, s, "the frames are not side-by-side stereo pairs");
     return {};
   }
   const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
   if (!veg || veg->n_views < 1) {
-    warn_no_densify(self, "no vegetation meta on the buffer (put exgsegment upstream)");
+    warn_no_densify(self, s, "no vegetation meta on the buffer (put exgsegment upstream)");
     return {};
   }
   const GstTreeStereoVegetationView *lv = &veg->views[LEFT];
@@ -297,7 +319,7 @@ static std::vector<StereoMatch> grid_matches(GstStereoDepth *self, GstBuffer *bu
     return {}; // no canopy, or too few matches to bound the search: nothing to densify
   treestereo::gst::MappedSilhouette sil(lv);
   if (sil.get().mask.empty()) {
-    warn_no_densify(self, "the vegetation meta carries no mask");
+    warn_no_densify(self, s, "the vegetation meta carries no mask");
     return {};
   }
   treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
@@ -310,16 +332,6 @@ static std::vector<StereoMatch> grid_matches(GstStereoDepth *self, GstBuffer *bu
                          treestereo::gst::view_mat(mat, RIGHT, 2), sil.get().mask, seeds, p);
 }
 
-/* Says once why canopy=tree/row does nothing on this stream. */
-static void warn_no_canopy(GstStereoDepth *self, const char *why)
-{
-  if (self->state->warned_no_canopy)
-    return;
-  self->state->warned_no_canopy = true;
-  GST_ELEMENT_WARNING(self, STREAM, FAILED,
-                      ("canopy: %s; the colour mask is taken as the canopy.", why), (nullptr));
-}
-
 /* The 3D canopy and its points (false when it cannot run on this buffer: then the colour mask
  * stands for the canopy, as with canopy=off). */
 static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
@@ -327,25 +339,19 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
                             const Settings &s, Output &out)
 {
   State *st = self->state;
-  if (!s.densify) {
-    warn_no_canopy(self, "it needs densify=true");
+  /* densify=false is a choice (documented: the canopy needs densify); the other causes stop
+   * densification too, and grid_matches() says them once for both. */
+  if (!s.densify)
     return false;
-  }
-  if (!st->info_set || treestereo::gst::n_views_of(&st->info) != 2) {
-    warn_no_canopy(self, "the frames are not side-by-side stereo pairs");
+  if (!st->info_set || treestereo::gst::n_views_of(&st->info) != 2)
     return false;
-  }
   const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
-  if (!veg || veg->n_views < 1) {
-    warn_no_canopy(self, "no vegetation meta on the buffer (put exgsegment upstream)");
+  if (!veg || veg->n_views < 1)
     return false;
-  }
   const GstTreeStereoVegetationView *lv = &veg->views[LEFT];
   treestereo::gst::MappedSilhouette sil(lv);
-  if (lv->present && sil.get().mask.empty()) {
-    warn_no_canopy(self, "the vegetation meta carries no mask");
+  if (lv->present && sil.get().mask.empty())
     return false;
-  }
   CanopyDepthParams p;
   p.canopy = s.zone;
   p.canopy.mode = s.canopy == GST_STEREO_DEPTH_CANOPY_ROW ? CanopyMode::Row : CanopyMode::Tree;
@@ -365,6 +371,7 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
     throw std::runtime_error("could not map the frame for the 3D canopy");
   const cv::Mat mat = frame.mat();
   p.grid.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
+  const gint64 t0 = g_get_monotonic_time();
   CanopyDepth c = canopy_depth(treestereo::gst::view_mat(mat, LEFT, 2),
                                treestereo::gst::view_mat(mat, RIGHT, 2), sil.get().mask, seeds, g,
                                p);
@@ -381,13 +388,38 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
   GST_DEBUG_OBJECT(self,
                    "canopy %s: zone %.0f-%.0f mm, ground %s (n %.3f %.3f %.3f, d %.0f mm, %zu "
                    "inliers), %d segments, x %.0f..%.0f mm, %zu canopy points, %zu coarse, %zu "
-                   "seam px",
+                   "seam px, %.1f ms",
                    cr.present ? "present" : "absent", cr.near_mm, cr.far_mm,
                    cr.ground.found ? "found" : "none", cr.ground.normal[0], cr.ground.normal[1],
                    cr.ground.normal[2], cr.ground.d, cr.ground.inliers, cr.n_segments, cr.left_mm,
-                   cr.right_mm, cr.n_canopy_points, c.coarse, cr.n_seam_pixels);
+                   cr.right_mm, cr.n_canopy_points, c.coarse, cr.n_seam_pixels,
+                   (g_get_monotonic_time() - t0) / 1000.0);
   out.canopy = std::move(c.canopy);
   return true;
+}
+
+/* The canopy settings checked as a whole (each property alone is in range): "" when they can
+ * run, else a sentence naming the properties and what to set. */
+static std::string canopy_settings_problem(const Settings &s)
+{
+  const CanopyParams &z = s.zone;
+  if (z.ground == GroundModel::Rig && !(z.camera_height_mm > 0))
+    return "stereodepth ground=rig needs camera-height: set camera-height to the left camera's "
+           "optical centre above the ground (mm), or use ground=fit.";
+  if (z.far_mm != 0 && z.far_mm <= z.near_mm)
+    return "stereodepth zone-far (" + std::to_string(std::lround(z.far_mm)) +
+           " mm) must be beyond zone-near (" + std::to_string(std::lround(z.near_mm)) +
+           " mm), or 0 for no far limit.";
+  if (z.max_height_mm != 0 && z.max_height_mm <= z.min_height_mm)
+    return "stereodepth max-height (" + std::to_string(std::lround(z.max_height_mm)) +
+           " mm) must be above min-height (" + std::to_string(std::lround(z.min_height_mm)) +
+           " mm), or 0 for no upper limit.";
+  try {
+    validate(z);
+  } catch (const std::exception &e) {
+    return std::string("stereodepth: invalid canopy settings: ") + e.what();
+  }
+  return "";
 }
 
 static void sparse_depth(GstStereoDepth *self, GstBuffer *buf, const GstTreeStereoMatchesMeta *mm,
@@ -526,6 +558,19 @@ static GstFlowReturn gst_stereo_depth_transform_ip(GstBaseTransform *trans, GstB
                        "matches meta of siftmatch upstream (or use mode=dense)."),
                       ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoMatchesMeta", buf));
     return GST_FLOW_ERROR;
+  }
+  if (s.mode == GST_STEREO_DEPTH_MODE_SPARSE && s.densify &&
+      s.canopy != GST_STEREO_DEPTH_CANOPY_OFF) {
+    const std::string problem = canopy_settings_problem(s);
+    if (!problem.empty()) {
+      GST_ELEMENT_ERROR(self, RESOURCE, SETTINGS, ("%s", problem.c_str()),
+                        ("canopy settings: ground %s, camera-height %g mm, zone %g..%g mm, "
+                         "height %g..%g mm",
+                         ground_model_name(s.zone.ground), s.zone.camera_height_mm,
+                         s.zone.near_mm, s.zone.far_mm, s.zone.min_height_mm,
+                         s.zone.max_height_mm));
+      return GST_FLOW_ERROR;
+    }
   }
   Output out;
   const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
