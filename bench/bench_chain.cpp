@@ -5,10 +5,23 @@
 //   bench-chain [--sizes 640x480,1296x972,2592x1944] [--frames 40] [--runs 3] [--distinct 6]
 //               [--pipelines full,queued,dense,disparity] [--keypoints 1296x972]
 //               [--growth-sizes 320x240,...] [--memory 2000] [--only throughput|keypoints|sizes|memory]
+//               [--scene lab|orchard|hedgerow] [--exgsegment PROP=VALUE+...]
+//               [--plugin-path [LABEL=]DIR[,[LABEL=]DIR2...]]
 //
-// Frames: `distinct` stereo pairs of the synthetic orchard (SceneRenderer, the rig driving at
-// 1 m/s past a row, 7 frames/s, so every pair differs) are rendered once into GstBuffers before
-// the pipeline starts. Two appsrc (format=time, is-live=false, block=true) push shallow copies of
+// Frames: `distinct` stereo pairs of the synthetic scene (SceneRenderer, SceneParams::kind from
+// --scene: lab by default, the tree alone on soil; orchard/hedgerow: a row of trees, a row
+// behind, grass; the rig driving at 1 m/s, 7 frames/s, so every pair differs) are rendered once
+// into GstBuffers before the pipeline starts. --exgsegment adds exgsegment properties to every
+// chain (default none; with --scene orchard or hedgerow, keep=all). A pipeline spec's extra
+// properties go to siftmatch ("full/scale=0.5"), or to the element named ("full/stereodepth.
+// canopy=off"); a plugin without that property skips the variant ("-" in the table).
+//
+// --plugin-path (throughput only) measures plugin builds side by side on the SAME frames: this
+// process renders the frames once into a file, then runs one child bench-chain per plugin build
+// and run, interleaved (A B A B ...: GStreamer loads one plugin of a name per process), each with
+// GST_PLUGIN_PATH=DIR, its own registry, and LD_LIBRARY_PATH=DIR/../meta (that build's meta
+// library, when there); one table gives every plugin's figures and its frame rate against the
+// first plugin's same pipeline (or, when the first has no such variant, its same kind). Two appsrc (format=time, is-live=false, block=true) push shallow copies of
 // them (gst_buffer_copy shares the memory: no pixel copy, no decoding) with PTS i/7 s, cycling
 // through the distinct pairs. The sink is fakesink sync=false, so the chain runs as fast as it can.
 //
@@ -69,6 +82,12 @@ struct Options {
   int frames = 40, runs = 3, distinct = 6, warmup = 4, memory_frames = 2000;
   bool header = true;
   std::string only;
+  SceneKind scene = SceneKind::Lab;
+  std::string exg_extra;                 // extra exgsegment properties ("keep=all")
+  bool exg_extra_set = false;
+  std::vector<std::string> plugin_paths; // [LABEL=]DIR per plugin build: side by side
+  std::string pipelines_arg = "full,queued,dense,disparity";
+  std::string frames_file; // child: load the frames from this file instead of rendering
 };
 
 std::vector<cv::Size> parse_sizes(const std::string &s)
@@ -129,11 +148,12 @@ struct Frames {
   std::string calib_path;
   std::vector<GstBuffer *> raw[2], rectified[2]; // rectified: only while `disparity` runs
   std::vector<double> truth_distance_m; // per distinct pair, in the rectified-left frame
+  bool owns_calib = true;                // a child reads its parent's file: leaves it
   ~Frames()
   {
     drop(rectified);
     drop(raw);
-    if (!calib_path.empty())
+    if (owns_calib && !calib_path.empty())
       g_unlink(calib_path.c_str());
   }
   static void drop(std::vector<GstBuffer *> (&views)[2])
@@ -157,11 +177,13 @@ GstBuffer *mat_buffer(const cv::Mat &m)
   return b;
 }
 
-std::unique_ptr<Frames> preload(cv::Size size, int distinct, const std::string &dir)
+std::unique_ptr<Frames> preload(cv::Size size, int distinct, const std::string &dir,
+                                SceneKind scene = SceneKind::Lab)
 {
   auto f = std::make_unique<Frames>();
   f->size = size;
   SceneParams p;
+  p.kind = scene;
   p.image_size = size;
   p.speed_m_s = 1.0;
   p.framerate = FPS_N;
@@ -178,6 +200,60 @@ std::unique_ptr<Frames> preload(cv::Size size, int distinct, const std::string &
         f->truth_distance_m.push_back(truth_in_frame(t, R1).distance_m);
       f->raw[v].push_back(mat_buffer(rgb));
     }
+  return f;
+}
+
+// The preloaded frames in a file, for the children of --plugin-path: the size, the calibration
+// file's path, the truth, then each view's raw RGB pixels.
+void save_frames(const Frames &f, const std::string &path)
+{
+  std::ofstream o(path, std::ios::binary);
+  const int head[3] = {f.size.width, f.size.height, int(f.raw[0].size())};
+  o.write(reinterpret_cast<const char *>(head), sizeof head);
+  const std::size_t n = f.calib_path.size();
+  o.write(reinterpret_cast<const char *>(&n), sizeof n);
+  o.write(f.calib_path.data(), std::streamsize(n));
+  o.write(reinterpret_cast<const char *>(f.truth_distance_m.data()),
+          std::streamsize(f.truth_distance_m.size() * sizeof(double)));
+  for (int v = 0; v < 2; v++)
+    for (GstBuffer *b : f.raw[v]) {
+      GstMapInfo map;
+      gst_buffer_map(b, &map, GST_MAP_READ);
+      o.write(reinterpret_cast<const char *>(map.data), std::streamsize(map.size));
+      gst_buffer_unmap(b, &map);
+    }
+  if (!o)
+    throw std::runtime_error("bench-chain: could not write " + path);
+}
+
+std::unique_ptr<Frames> load_frames(const std::string &path)
+{
+  std::ifstream in(path, std::ios::binary);
+  auto f = std::make_unique<Frames>();
+  f->owns_calib = false;
+  int head[3] = {0, 0, 0};
+  std::size_t n = 0;
+  in.read(reinterpret_cast<char *>(head), sizeof head);
+  in.read(reinterpret_cast<char *>(&n), sizeof n);
+  if (!in || head[0] < 64 || head[1] < 48 || head[2] < 1 || n > 4096)
+    throw std::runtime_error("bench-chain: bad frames file " + path);
+  f->size = cv::Size(head[0], head[1]);
+  f->calib_path.resize(n);
+  in.read(f->calib_path.data(), std::streamsize(n));
+  f->truth_distance_m.resize(std::size_t(head[2]));
+  in.read(reinterpret_cast<char *>(f->truth_distance_m.data()),
+          std::streamsize(f->truth_distance_m.size() * sizeof(double)));
+  const std::size_t bytes = std::size_t(f->size.area()) * 3;
+  std::vector<char> px(bytes);
+  for (int v = 0; v < 2; v++)
+    for (int i = 0; i < head[2]; i++) {
+      in.read(px.data(), std::streamsize(bytes));
+      GstBuffer *b = gst_buffer_new_allocate(nullptr, bytes, nullptr);
+      gst_buffer_fill(b, 0, px.data(), bytes);
+      f->raw[v].push_back(b);
+    }
+  if (!in)
+    throw std::runtime_error("bench-chain: short frames file " + path);
   return f;
 }
 
@@ -205,29 +281,38 @@ struct Chain {
   bool has_rectify = true;
 };
 
-Chain chain_of(const std::string &kind, const Frames &f, const std::string &sift_extra)
+// Extra properties of the chains' elements: siftmatch's (a pipeline spec's plain ones), the
+// element-qualified ones of the spec ("stereodepth.canopy=off") and --exgsegment's.
+struct Extras {
+  std::string siftmatch, stereodepth, exgsegment;
+};
+
+Chain chain_of(const std::string &kind, const Frames &f, const Extras &x)
 {
+  const std::string &sift_extra = x.siftmatch;
+  const std::string exg = " ! exgsegment name=exgsegment " + x.exgsegment;
+  const std::string sd = " " + x.stereodepth;
   const std::string src = "appsrc name=src0 ! r.left appsrc name=src1 ! r.right "
                           "stereorectify name=r calibration=" + f.calib_path;
   const std::string sink = " ! fakesink name=sink sync=false";
   Chain c;
   if (kind == "full" || kind == "sparse") {
     // sparse: stereodepth without densification (the matches' points alone)
-    c.description = src + " ! exgsegment name=exgsegment ! siftmatch name=siftmatch " +
-                    sift_extra + " ! stereodepth name=stereodepth" +
+    c.description = src + exg + " ! siftmatch name=siftmatch " +
+                    sift_extra + " ! stereodepth name=stereodepth" + sd +
                     (kind == "sparse" ? " densify=false" : "") +
                     " ! treemetrics name=treemetrics" + sink;
     c.timed = {"exgsegment", "siftmatch", "stereodepth", "treemetrics"};
   } else if (kind == "queued") {
     // Two stages: rectify+segment on the aggregator's thread, match+depth+metrics on the
     // queue's, so they overlap on the two cores.
-    c.description = src + " ! exgsegment name=exgsegment ! queue max-size-buffers=2 ! siftmatch "
-                          "name=siftmatch " + sift_extra + " ! stereodepth name=stereodepth ! "
-                          "treemetrics name=treemetrics" + sink;
+    c.description = src + exg + " ! queue max-size-buffers=2 ! siftmatch "
+                          "name=siftmatch " + sift_extra + " ! stereodepth name=stereodepth" +
+                    sd + " ! treemetrics name=treemetrics" + sink;
     c.timed = {"exgsegment", "siftmatch", "stereodepth", "treemetrics"};
   } else if (kind == "dense") {
-    c.description = src + " ! exgsegment name=exgsegment ! stereodepth name=stereodepth "
-                          "mode=dense ! treemetrics name=treemetrics" + sink;
+    c.description = src + exg + " ! stereodepth name=stereodepth "
+                          "mode=dense" + sd + " ! treemetrics name=treemetrics" + sink;
     c.timed = {"exgsegment", "stereodepth", "treemetrics"};
   } else if (kind == "disparity") {
     c.description = "disparity name=disparity method=sgbm" + sink +
@@ -501,10 +586,20 @@ std::string size_str(cv::Size s)
   return std::to_string(s.width) + "x" + std::to_string(s.height);
 }
 
-// A pipeline variant: its kind (chain_of) and extra siftmatch properties.
+// A pipeline variant: its kind (chain_of) and extra element properties.
 struct Variant {
-  std::string label, kind, sift_extra;
+  std::string label, kind;
+  Extras x;
+  // The same kind with the same siftmatch settings: the plugins' rows compared when the
+  // reference plugin lacks an element-qualified property.
+  std::string base() const { return kind + "/" + x.siftmatch; }
 };
+
+Extras with_options(Extras x, const Options &o)
+{
+  x.exgsegment = o.exg_extra;
+  return x;
+}
 
 // Runs every variant `runs` times, interleaved (A B C A B C ...) so that a change in the
 // machine's load hits them alike.
@@ -517,7 +612,7 @@ std::vector<Pooled> run_many(const std::vector<Variant> &variants, Frames &f, co
   for (int r = 0; r < o.runs; r++)
     for (size_t k = 0; k < variants.size(); k++) {
       const Variant &v = variants[k];
-      RunResult res = run_chain(chain_of(v.kind, f, v.sift_extra), f, o.frames, o.warmup);
+      RunResult res = run_chain(chain_of(v.kind, f, with_options(v.x, o)), f, o.frames, o.warmup);
       std::fprintf(stderr, "  %s %s run %d: %.2f frames/s, CPU %.0f %% (%.0f ms/frame), peak "
                    "RSS %.0f MB\n", v.label.c_str(), size_str(f.size).c_str(), r + 1, res.fps,
                    res.cpu_pct, res.cpu_ms_per_frame, res.peak_rss_mb);
@@ -535,7 +630,8 @@ std::string err_cell(const Pooled &p)
   return cv::format("%.1f / %.1f", s.median, s.p95);
 }
 
-// "kind" or "kind/prop=value+prop=value" (extra siftmatch properties).
+// "kind" or "kind/prop=value+prop=value": extra siftmatch properties, or, as
+// "element.prop=value", stereodepth's.
 Variant variant_of(const std::string &spec)
 {
   Variant v;
@@ -543,11 +639,54 @@ Variant variant_of(const std::string &spec)
   const size_t slash = spec.find('/');
   v.kind = spec.substr(0, slash);
   if (slash != std::string::npos) {
-    v.sift_extra = spec.substr(slash + 1);
-    std::replace(v.sift_extra.begin(), v.sift_extra.end(), '+', ' ');
-    v.label = v.kind + " (siftmatch " + v.sift_extra + ")";
+    for (const std::string &kv : parse_words([&] {
+           std::string t = spec.substr(slash + 1);
+           std::replace(t.begin(), t.end(), '+', ',');
+           return t;
+         }())) {
+      const size_t eq = kv.find('='), dot = kv.find('.');
+      if (dot != std::string::npos && dot < eq) {
+        const std::string el = kv.substr(0, dot);
+        if (el != "stereodepth" && el != "siftmatch")
+          throw std::runtime_error("bench-chain: '" + kv + "': only siftmatch.* and "
+                                   "stereodepth.* in a pipeline spec (--exgsegment for it)");
+        std::string &to = el == "stereodepth" ? v.x.stereodepth : v.x.siftmatch;
+        to += (to.empty() ? "" : " ") + kv.substr(dot + 1);
+      } else {
+        v.x.siftmatch += (v.x.siftmatch.empty() ? "" : " ") + kv;
+      }
+    }
+    v.label = v.kind;
+    if (!v.x.siftmatch.empty())
+      v.label += " (siftmatch " + v.x.siftmatch + ")";
+    if (!v.x.stereodepth.empty())
+      v.label += " (stereodepth " + v.x.stereodepth + ")";
   }
   return v;
+}
+
+// Whether this process's plugin has every property the variant sets (an older build may lack
+// one: its row is then "-").
+bool plugin_supports(const Variant &v)
+{
+  for (const auto &[element, props] :
+       {std::pair{"siftmatch", v.x.siftmatch}, std::pair{"stereodepth", v.x.stereodepth}}) {
+    if (props.empty())
+      continue;
+    GstElement *e = gst_element_factory_make(element, nullptr);
+    if (!e)
+      return false;
+    std::stringstream ss(props);
+    std::string kv;
+    bool ok = true;
+    while (ss >> kv)
+      ok = ok && g_object_class_find_property(G_OBJECT_GET_CLASS(e),
+                                              kv.substr(0, kv.find('=')).c_str()) != nullptr;
+    gst_object_unref(e);
+    if (!ok)
+      return false;
+  }
+  return true;
 }
 
 void throughput(const Options &o, const std::string &dir)
@@ -575,7 +714,7 @@ void throughput(const Options &o, const std::string &dir)
   for (const cv::Size &size : o.sizes) {
     std::fprintf(stderr, "bench-chain: rendering %d pairs at %s\n", o.distinct,
                  size_str(size).c_str());
-    std::unique_ptr<Frames> f = preload(size, o.distinct, dir);
+    std::unique_ptr<Frames> f = preload(size, o.distinct, dir, o.scene);
     std::vector<Pooled> by = run_many(variants, *f, o);
     double ref = 0;
     for (size_t k = 0; k < variants.size(); k++)
@@ -604,6 +743,244 @@ void throughput(const Options &o, const std::string &dir)
   }
 }
 
+// --plugin-path's child: one run of each variant on the parent's frames, its figures as lines on
+// stdout (P plugin file; S k: variant k unsupported; R k fps cpu% cpu-ms rss frames trees counted
+// copies; M k element ms,...; D k distance errors; K k keypoints).
+void child_runs(const Options &o)
+{
+  std::unique_ptr<Frames> f = load_frames(o.frames_file);
+  GstPlugin *plugin = gst_registry_find_plugin(gst_registry_get(), "treestereo");
+  std::string meta = "?"; // the meta library this process loaded
+  {
+    std::ifstream maps("/proc/self/maps");
+    std::string line;
+    while (std::getline(maps, line))
+      if (line.find("libgsttreestereo-1.0.so") != std::string::npos) {
+        meta = line.substr(line.find('/'));
+        break;
+      }
+  }
+  std::printf("P %s, meta %s\n", plugin ? gst_plugin_get_filename(plugin) : "?", meta.c_str());
+  if (plugin)
+    gst_object_unref(plugin);
+  std::vector<Variant> variants;
+  for (const std::string &spec : o.pipelines)
+    variants.push_back(variant_of(spec));
+  for (const Variant &v : variants)
+    if (v.kind == "disparity" && f->rectified[0].empty())
+      add_rectified(*f);
+  auto list = [](const auto &values) {
+    std::string t;
+    for (const auto &x : values)
+      t += (t.empty() ? "" : ",") + cv::format("%.4f", double(x));
+    return t;
+  };
+  for (size_t k = 0; k < variants.size(); k++) {
+    if (!plugin_supports(variants[k])) {
+      std::printf("S %zu\n", k);
+      continue;
+    }
+    const RunResult r =
+        run_chain(chain_of(variants[k].kind, *f, with_options(variants[k].x, o)), *f, o.frames,
+                  o.warmup);
+    std::printf("R %zu %.6f %.6f %.6f %.3f %d %d %d %d\n", k, r.fps, r.cpu_pct,
+                r.cpu_ms_per_frame, r.peak_rss_mb, r.frames, r.trees, r.counted, r.copies);
+    for (const auto &[el, ms] : r.ms)
+      std::printf("M %zu %s %s\n", k, el.c_str(), list(ms).c_str());
+    std::printf("D %zu %s\n", k, list(r.distance_err_cm).c_str());
+    std::printf("K %zu %s\n", k, list(r.keypoints).c_str());
+  }
+  std::fflush(stdout);
+}
+
+std::vector<double> parse_list(const std::string &s)
+{
+  std::vector<double> v;
+  for (const std::string &x : parse_words(s))
+    if (!x.empty())
+      v.push_back(std::stod(x));
+  return v;
+}
+
+// --plugin-path: every plugin build on the same frames, one child process per plugin and run,
+// interleaved; one table.
+void compare_plugins(const Options &o, const std::string &dir)
+{
+  struct Plugin {
+    std::string label, dir, loaded;
+  };
+  std::vector<Plugin> plugins;
+  for (const std::string &spec : o.plugin_paths) {
+    const size_t eq = spec.find('=');
+    Plugin p;
+    p.dir = eq == std::string::npos ? spec : spec.substr(eq + 1);
+    p.label = eq == std::string::npos ? spec : spec.substr(0, eq);
+    plugins.push_back(p);
+  }
+  std::vector<Variant> variants;
+  for (const std::string &spec : o.pipelines)
+    variants.push_back(variant_of(spec));
+  gchar *self = g_file_read_link("/proc/self/exe", nullptr);
+  if (!self)
+    throw std::runtime_error("bench-chain: cannot find its own executable");
+  const std::string exe = self;
+  g_free(self);
+  if (o.header) {
+    std::printf("### Plugin builds side by side (%s scene)\n\n", scene_kind_name(o.scene));
+    std::printf("The same preloaded frames (rendered once, read from one file) through each "
+                "plugin build, one process per build and run, interleaved (");
+    for (const Plugin &p : plugins)
+      std::printf("%s ", p.label.c_str());
+    std::printf("...) %d times; frames/s: median of the %d runs of %d frames (the first %d of "
+                "each left out), each run's in order; vs: against the first build's same "
+                "pipeline; exgsegment %s; element ms: median / p95 over all frames.\n\n",
+                o.runs, o.runs, o.frames, o.warmup,
+                o.exg_extra.empty() ? "defaults" : o.exg_extra.c_str());
+    std::printf("| size | build | pipeline | frames/s | runs | vs %s | CPU ms/frame | CPU %% | "
+                "exgsegment ms | siftmatch ms | stereodepth ms | treemetrics ms | trees found | "
+                "distance error cm | keypoints L+R |\n",
+                plugins[0].label.c_str());
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  }
+  const size_t np = plugins.size(), nv = variants.size();
+  for (const cv::Size &size : o.sizes) {
+    std::fprintf(stderr, "bench-chain: rendering %d pairs at %s (%s)\n", o.distinct,
+                 size_str(size).c_str(), scene_kind_name(o.scene));
+    std::unique_ptr<Frames> f = preload(size, o.distinct, dir, o.scene);
+    const std::string path = dir + "/frames-" + size_str(size) + ".bin";
+    save_frames(*f, path);
+    std::vector<std::vector<Pooled>> by(np, std::vector<Pooled>(nv));
+    std::vector<std::vector<char>> skipped(np, std::vector<char>(nv, 0));
+    for (int r = 0; r < o.runs; r++)
+      for (size_t i = 0; i < np; i++) {
+        const std::string frames = std::to_string(o.frames), warmup = std::to_string(o.warmup);
+        std::vector<const char *> argv = {exe.c_str(),         "--only",
+                                          "throughput",        "--frames-file",
+                                          path.c_str(),        "--pipelines",
+                                          o.pipelines_arg.c_str(), "--frames",
+                                          frames.c_str(),      "--warmup",
+                                          warmup.c_str(),      "--exgsegment",
+                                          o.exg_extra.c_str(), nullptr};
+        gchar **env = g_get_environ();
+        env = g_environ_setenv(env, "GST_PLUGIN_PATH_1_0", plugins[i].dir.c_str(), TRUE);
+        env = g_environ_setenv(env, "GST_PLUGIN_PATH", plugins[i].dir.c_str(), TRUE);
+        const std::string registry = dir + "/registry-" + std::to_string(i) + ".bin";
+        env = g_environ_setenv(env, "GST_REGISTRY_1_0", registry.c_str(), TRUE);
+        const std::string meta = plugins[i].dir + "/../meta";
+        if (g_file_test(meta.c_str(), G_FILE_TEST_IS_DIR)) {
+          const char *old = g_environ_getenv(env, "LD_LIBRARY_PATH");
+          const std::string ld = meta + (old && *old ? ":" + std::string(old) : "");
+          env = g_environ_setenv(env, "LD_LIBRARY_PATH", ld.c_str(), TRUE);
+        }
+        std::fprintf(stderr, "  run %d, %s:\n", r + 1, plugins[i].label.c_str());
+        gchar *out = nullptr;
+        gint status = 0;
+        GError *err = nullptr;
+        const gboolean spawned =
+            g_spawn_sync(nullptr, const_cast<gchar **>(argv.data()), env, G_SPAWN_DEFAULT,
+                         nullptr, nullptr, &out, nullptr, &status, &err);
+        g_strfreev(env);
+        if (!spawned || !g_spawn_check_wait_status(status, &err)) {
+          const std::string why = err ? err->message : "?";
+          g_clear_error(&err);
+          g_free(out);
+          throw std::runtime_error("bench-chain: " + plugins[i].label + ": " + why);
+        }
+        std::stringstream lines(out);
+        g_free(out);
+        std::string line;
+        std::vector<RunResult> res(nv);
+        std::vector<char> got(nv, 0);
+        while (std::getline(lines, line)) {
+          std::stringstream ls(line);
+          std::string tag, rest;
+          size_t k = 0;
+          ls >> tag;
+          if (tag == "P") {
+            std::getline(ls >> std::ws, plugins[i].loaded);
+            continue;
+          }
+          if (!(ls >> k) || k >= nv)
+            continue;
+          RunResult &x = res[k];
+          if (tag == "S") {
+            skipped[i][k] = 1;
+          } else if (tag == "R") {
+            ls >> x.fps >> x.cpu_pct >> x.cpu_ms_per_frame >> x.peak_rss_mb >> x.frames >>
+                x.trees >> x.counted >> x.copies;
+            got[k] = 1;
+          } else if (tag == "M") {
+            std::string el;
+            ls >> el >> rest;
+            x.ms[el] = parse_list(rest);
+          } else if (tag == "D") {
+            ls >> rest;
+            x.distance_err_cm = parse_list(rest);
+          } else if (tag == "K") {
+            ls >> rest;
+            for (double v : parse_list(rest))
+              x.keypoints.push_back(unsigned(v));
+          }
+        }
+        for (size_t k = 0; k < nv; k++)
+          if (got[k]) {
+            by[i][k].add(res[k]);
+            std::fprintf(stderr, "  %s %s %s run %d: %.2f frames/s, CPU %.0f ms/frame\n",
+                         plugins[i].label.c_str(), variants[k].label.c_str(),
+                         size_str(size).c_str(), r + 1, res[k].fps, res[k].cpu_ms_per_frame);
+          } else if (!skipped[i][k]) {
+            throw std::runtime_error("bench-chain: " + plugins[i].label + " gave no figures for " +
+                                     variants[k].label);
+          }
+      }
+    g_unlink(path.c_str());
+    for (size_t i = 0; i < np; i++)
+      for (size_t k = 0; k < nv; k++) {
+        Pooled &p = by[i][k];
+        if (skipped[i][k] || p.fps.empty()) {
+          std::printf("| %s | %s | %s | - (no such property) | | | | | | | | | | | |\n",
+                      size_str(size).c_str(), plugins[i].label.c_str(),
+                      variants[k].label.c_str());
+          continue;
+        }
+        std::string runs;
+        for (double x : p.fps)
+          runs += (runs.empty() ? "" : " ") + cv::format("%.2f", x);
+        const double fps = median(p.fps);
+        double ref = 0;
+        if (!by[0][k].fps.empty())
+          ref = median(by[0][k].fps);
+        else
+          for (size_t j = 0; j < nv && ref == 0; j++)
+            if (variants[j].base() == variants[k].base() && !by[0][j].fps.empty())
+              ref = median(by[0][j].fps);
+        const std::string &kind = variants[k].kind;
+        const bool measures = kind != "disparity";
+        std::printf("| %s | %s | %s | %.2f | %s | %s | %.0f | %.0f | %s | %s | %s | %s | %s | %s "
+                    "| %s |\n",
+                    size_str(size).c_str(), plugins[i].label.c_str(), variants[k].label.c_str(),
+                    fps, runs.c_str(),
+                    ref > 0 ? cv::format("%.3f (%+.1f %%)", fps / ref, 100 * (fps / ref - 1)).c_str()
+                            : "-",
+                    median(p.cpu_ms), median(p.cpu), ms_cell(p, "exgsegment").c_str(),
+                    ms_cell(p, "siftmatch").c_str(), ms_cell(p, "stereodepth").c_str(),
+                    ms_cell(p, "treemetrics").c_str(),
+                    measures ? cv::format("%d/%d", p.trees, p.frames).c_str() : "-",
+                    measures ? err_cell(p).c_str() : "-",
+                    measures && kind != "dense" && !p.keypoints.empty()
+                        ? cv::format("%.0f", median(p.keypoints)).c_str()
+                        : "-");
+      }
+    std::fflush(stdout);
+  }
+  std::printf("\nBuilds: ");
+  for (size_t i = 0; i < np; i++)
+    std::printf("%s%s = %s", i ? "; " : "", plugins[i].label.c_str(), plugins[i].loaded.c_str());
+  std::printf(".\n");
+  for (size_t i = 0; i < np; i++)
+    g_unlink((dir + "/registry-" + std::to_string(i) + ".bin").c_str());
+}
+
 void keypoint_growth(const Options &o, const std::string &dir)
 {
   std::printf("\n### Cost against the number of keypoints (%s, full chain, sequential)\n\n",
@@ -613,13 +990,13 @@ void keypoint_growth(const Options &o, const std::string &dir)
   std::printf("| siftmatch settings | keypoints L+R (median) | siftmatch ms (median / p95) | "
               "CPU ms/frame | frames/s | distance error cm (median / p95) |\n"
               "|---|---|---|---|---|---|\n");
-  std::unique_ptr<Frames> f = preload(o.keypoint_size, o.distinct, dir);
+  std::unique_ptr<Frames> f = preload(o.keypoint_size, o.distinct, dir, o.scene);
   const std::vector<std::string> settings = {
       "scale=0.25", "contrast-threshold=0.08", "contrast-threshold=0.04",
       "contrast-threshold=0.02", "contrast-threshold=0.01", "scale=1"};
   std::vector<Variant> variants;
   for (const std::string &x : settings)
-    variants.push_back(Variant{x, "full", x});
+    variants.push_back(Variant{x, "full", Extras{x, "", ""}});
   std::vector<Pooled> by = run_many(variants, *f, o);
   for (size_t k = 0; k < variants.size(); k++) {
     Pooled &p = by[k];
@@ -640,8 +1017,8 @@ void size_growth(const Options &o, const std::string &dir)
               "siftmatch ms | stereodepth ms | treemetrics ms | CPU ms/frame | frames/s | peak "
               "RSS MB | preloaded MB |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const cv::Size &size : o.growth_sizes) {
-    std::unique_ptr<Frames> f = preload(size, o.distinct, dir);
-    Pooled p = run_many({Variant{"full", "full", ""}}, *f, o)[0];
+    std::unique_ptr<Frames> f = preload(size, o.distinct, dir, o.scene);
+    Pooled p = run_many({Variant{"full", "full", Extras{}}}, *f, o)[0];
     const double fps = median(p.fps);
     std::printf("| %s | %.2f | %.0f | %s | %s | %s | %s | %s | %.0f | %.2f | %.0f | %.0f |\n",
                 size_str(size).c_str(), size.area() / 1e6, median(p.keypoints),
@@ -656,8 +1033,9 @@ void size_growth(const Options &o, const std::string &dir)
 void memory_run(const Options &o, const std::string &dir)
 {
   const cv::Size size{640, 480};
-  std::unique_ptr<Frames> f = preload(size, o.distinct, dir);
-  RunResult r = run_chain(chain_of("full", *f, ""), *f, o.memory_frames, o.warmup);
+  std::unique_ptr<Frames> f = preload(size, o.distinct, dir, o.scene);
+  RunResult r = run_chain(chain_of("full", *f, with_options(Extras{}, o)), *f, o.memory_frames,
+                          o.warmup);
   std::printf("\n### Memory over a long run (%s, full chain, %d frames)\n\n",
               size_str(size).c_str(), o.memory_frames);
   if (r.rss_kb.size() < 4) {
@@ -711,7 +1089,7 @@ int main(int argc, char **argv)
       else if (a == "--keypoints")
         o.keypoint_size = parse_sizes(v).at(0);
       else if (a == "--pipelines")
-        o.pipelines = parse_words(v);
+        o.pipelines = parse_words(o.pipelines_arg = v);
       else if (a == "--frames")
         o.frames = std::stoi(v);
       else if (a == "--runs")
@@ -726,12 +1104,32 @@ int main(int argc, char **argv)
         o.header = v != "0";
       else if (a == "--only")
         o.only = v;
+      else if (a == "--scene")
+        o.scene = scene_kind_from_name(v);
+      else if (a == "--exgsegment") {
+        o.exg_extra = v;
+        o.exg_extra_set = true;
+      } else if (a == "--plugin-path")
+        o.plugin_paths = parse_words(v);
+      else if (a == "--frames-file") // a child of --plugin-path
+        o.frames_file = v;
       else
         throw std::runtime_error("bench-chain: unknown option " + a);
     }
+    if (!o.exg_extra_set && o.scene != SceneKind::Lab)
+      o.exg_extra = "keep=all"; // every tree of the row to the canopy step, not the largest
+    std::replace(o.exg_extra.begin(), o.exg_extra.end(), '+', ' ');
+    if (!o.frames_file.empty()) {
+      child_runs(o);
+      return 0;
+    }
+    if (!o.plugin_paths.empty() && o.only != "throughput")
+      throw std::runtime_error("bench-chain: --plugin-path needs --only throughput");
     gchar *dir = g_dir_make_tmp("bench-chain-XXXXXX", nullptr);
     const std::string d = dir;
-    if (o.only.empty() || o.only == "throughput")
+    if (!o.plugin_paths.empty())
+      compare_plugins(o, d);
+    else if (o.only.empty() || o.only == "throughput")
       throughput(o, d);
     if (o.only.empty() || o.only == "keypoints")
       keypoint_growth(o, d);
