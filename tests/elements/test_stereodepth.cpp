@@ -640,6 +640,379 @@ GST_START_TEST(test_sparse_densify_without_vegetation_warns_once)
 }
 GST_END_TEST;
 
+
+/* ---- The canopy in 3D on treetestsrc's orchard (a row of trees on grass, a row behind) ---- */
+
+namespace {
+
+const char *kOrchardCaps = "video/x-raw,format=RGB,width=640,height=480";
+
+/* A rig calibration written by treetestsrc once per process (the orchard's cameras). */
+std::string orchard_calibration()
+{
+  static std::string path;
+  if (!path.empty())
+    return path;
+  gchar *dir = g_dir_make_tmp("stereodepth-XXXXXX", nullptr);
+  fail_unless(dir != nullptr);
+  path = std::string(dir) + "/rig.yml";
+  g_free(dir);
+  const std::string desc = "treetestsrc view=left scene=orchard seed=3 num-buffers=1 "
+                           "calibration-out=" + path + " ! " + kOrchardCaps + " ! fakesink";
+  GError *err = nullptr;
+  GstElement *p = gst_parse_launch(desc.c_str(), &err);
+  fail_unless(p != nullptr && err == nullptr);
+  gst_element_set_state(p, GST_STATE_PLAYING);
+  GstBus *bus = gst_element_get_bus(p);
+  GstMessage *m = gst_bus_timed_pop_filtered(bus, 60 * GST_SECOND,
+                                             GstMessageType(GST_MESSAGE_EOS | GST_MESSAGE_ERROR));
+  fail_unless(m != nullptr && GST_MESSAGE_TYPE(m) == GST_MESSAGE_EOS);
+  gst_message_unref(m);
+  gst_object_unref(bus);
+  gst_element_set_state(p, GST_STATE_NULL);
+  gst_object_unref(p);
+  fail_unless(g_file_test(path.c_str(), G_FILE_TEST_EXISTS));
+  return path;
+}
+
+/* What one orchard pair through rectify ! exgsegment ! siftmatch ! stereodepth ! treemetrics
+ * gives. */
+struct OrchardRun {
+  bool buffer = false;
+  bool canopy_meta = false;
+  GstTreeStereoCanopyMode mode = GST_TREE_STEREO_CANOPY_COLOUR;
+  bool canopy_present = false;
+  int canopy_x = 0, canopy_w = 0; // the canopy meta's left-view box (px)
+  int veg_x = 0, veg_w = 0;       // the vegetation meta's left-view box (px)
+  double truth_width_m = 0, truth_z_m = 0, truth_x_m = 0, fx = 0, cx = 0;
+  GstTreeStereoDepthStats stats{};
+  guint n_points = 0, n_invalid = 0;
+  guint valid_off_canopy = 0; // valid points whose left pixel is off the canopy mask
+  guint invalid_on_canopy = 0;
+  bool tree_present = false;
+  bool message = false, message_canopy = false;
+  GstTreeStereoDepthStats message_stats{};
+  GstTreeStereoCanopyMeta message_fields{};
+  GstMessage *error = nullptr;     // owned
+  guint warnings = 0;
+};
+
+bool on_mask(const GstTreeStereoVegetationView &v, GstMapInfo &map, double x, double y)
+{
+  const int ix = int(std::lround(x)), iy = int(std::lround(y));
+  if (ix < 0 || iy < 0 || ix >= int(v.mask_width) || iy >= int(v.mask_height))
+    return false;
+  return map.data[gsize(iy) * v.mask_stride + gsize(ix)] != 0;
+}
+
+void orchard_handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
+{
+  OrchardRun &r = *static_cast<OrchardRun *>(data);
+  if (r.buffer)
+    return;
+  r.buffer = true;
+  const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
+  fail_unless(gm != nullptr);
+  r.fx = gm->fx[0];
+  r.cx = gm->cx[0];
+  const GstTreeStereoTruthMeta *tm = gst_buffer_get_tree_stereo_truth_meta(buf);
+  fail_unless(tm != nullptr, "the truth meta did not come through");
+  r.truth_width_m = tm->truth.width_m;
+  r.truth_z_m = tm->truth.centroid_m[2];
+  r.truth_x_m = tm->truth.centroid_m[0];
+  const GstTreeStereoVegetationMeta *vm = gst_buffer_get_tree_stereo_vegetation_meta(buf);
+  fail_unless(vm != nullptr && vm->views[0].present);
+  r.veg_x = vm->views[0].bbox_x;
+  r.veg_w = vm->views[0].bbox_width;
+  const GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(buf);
+  fail_unless(pm != nullptr);
+  r.stats = pm->stats;
+  r.n_points = pm->n_points;
+  for (guint i = 0; i < pm->n_points; i++)
+    r.n_invalid += pm->points[i].valid ? 0 : 1;
+  const GstTreeStereoMetricsMeta *mt = gst_buffer_get_tree_stereo_metrics_meta(buf);
+  fail_unless(mt != nullptr);
+  r.tree_present = mt->metrics.tree_present;
+  const GstTreeStereoCanopyMeta *cm = gst_buffer_get_tree_stereo_canopy_meta(buf);
+  if (!cm)
+    return;
+  r.canopy_meta = true;
+  r.mode = cm->mode;
+  r.canopy_present = cm->view.present;
+  r.canopy_x = cm->view.bbox_x;
+  r.canopy_w = cm->view.bbox_width;
+  if (!cm->view.present || !cm->view.mask)
+    return;
+  /* every point at its left pixel: the grid points' match_index is the pixel index, the
+   * seeds' the index of their match */
+  const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
+  fail_unless(mm != nullptr);
+  GstMapInfo map;
+  fail_unless(gst_buffer_map(cm->view.mask, &map, GST_MAP_READ));
+  const guint n_seeds = pm->n_points - pm->stats.n_grid;
+  const guint w = gm->view_width;
+  for (guint i = 0; i < pm->n_points; i++) {
+    double x, y;
+    if (i < n_seeds) {
+      fail_unless(pm->points[i].match_index < mm->n_matches);
+      x = mm->matches[pm->points[i].match_index].xl;
+      y = mm->matches[pm->points[i].match_index].yl;
+    } else {
+      x = pm->points[i].match_index % w;
+      y = pm->points[i].match_index / w;
+    }
+    const bool in = on_mask(cm->view, map, x, y);
+    if (pm->points[i].valid && !in)
+      r.valid_off_canopy++;
+    if (!pm->points[i].valid && in)
+      r.invalid_on_canopy++;
+  }
+  gst_buffer_unmap(cm->view.mask, &map);
+}
+
+/* One orchard pair (seed 3, the tree in front at 2 m) with these stereodepth properties. */
+OrchardRun run_orchard(const char *stereodepth_props)
+{
+  const std::string calib = orchard_calibration();
+  const std::string src = std::string("treetestsrc scene=orchard seed=3 num-buffers=1 ");
+  const std::string desc =
+      "stereorectify name=r calibration=" + calib + " ! exgsegment ! siftmatch ! stereodepth " +
+      stereodepth_props + " ! treemetrics ! fakesink name=out signal-handoffs=true " + src +
+      "view=left ! " + kOrchardCaps + " ! r.left " + src + "view=right ! " + kOrchardCaps +
+      " ! r.right";
+  GError *err = nullptr;
+  GstElement *p = gst_parse_launch(desc.c_str(), &err);
+  fail_unless(p != nullptr && err == nullptr, "%s", err ? err->message : desc.c_str());
+  OrchardRun r;
+  GstElement *sink = gst_bin_get_by_name(GST_BIN(p), "out");
+  g_signal_connect(sink, "handoff", G_CALLBACK(orchard_handoff), &r);
+  gst_object_unref(sink);
+  GstBus *bus = gst_element_get_bus(p);
+  gst_element_set_state(p, GST_STATE_PLAYING);
+  for (;;) {
+    GstMessage *m = gst_bus_timed_pop(bus, 120 * GST_SECOND);
+    fail_unless(m != nullptr, "the pipeline did not finish");
+    const GstMessageType t = GST_MESSAGE_TYPE(m);
+    if (t == GST_MESSAGE_ELEMENT && gst_message_has_name(m, "stereodepth") && !r.message) {
+      const GstStructure *st = gst_message_get_structure(m);
+      gboolean dense = TRUE;
+      r.message = gst_tree_stereo_depth_message_parse(st, &dense, &r.message_stats, nullptr);
+      r.message_canopy = gst_tree_stereo_canopy_message_parse(st, &r.message_fields);
+    } else if (t == GST_MESSAGE_WARNING) {
+      r.warnings++;
+    } else if (t == GST_MESSAGE_ERROR) {
+      r.error = m;
+      break;
+    } else if (t == GST_MESSAGE_EOS) {
+      gst_message_unref(m);
+      break;
+    }
+    gst_message_unref(m);
+  }
+  gst_object_unref(bus);
+  gst_element_set_state(p, GST_STATE_NULL);
+  gst_object_unref(p);
+  return r;
+}
+
+} // namespace
+
+GST_START_TEST(test_canopy_properties_round_trip)
+{
+  GstElement *e = gst_element_factory_make("stereodepth", nullptr);
+  fail_unless(e != nullptr);
+  gchar *canopy = nullptr, *ground = nullptr;
+  gdouble zn = -1, zf = -1, hmin = -1, hmax = -1, ch = -1, cp = -1;
+  auto read = [&] {
+    GValue v = G_VALUE_INIT;
+    g_free(canopy);
+    g_free(ground);
+    g_value_init(&v, g_type_from_name("GstStereoDepthCanopy"));
+    g_object_get_property(G_OBJECT(e), "canopy", &v);
+    canopy = g_strdup(g_enum_get_value(G_ENUM_CLASS(g_type_class_peek(G_VALUE_TYPE(&v))),
+                                       g_value_get_enum(&v))->value_nick);
+    g_value_unset(&v);
+    g_value_init(&v, g_type_from_name("GstStereoDepthGround"));
+    g_object_get_property(G_OBJECT(e), "ground", &v);
+    ground = g_strdup(g_enum_get_value(G_ENUM_CLASS(g_type_class_peek(G_VALUE_TYPE(&v))),
+                                       g_value_get_enum(&v))->value_nick);
+    g_value_unset(&v);
+    g_object_get(e, "zone-near", &zn, "zone-far", &zf, "min-height", &hmin, "max-height", &hmax,
+                 "camera-height", &ch, "camera-pitch", &cp, NULL);
+  };
+  /* defaults: the tree in front, the zone and the ground from the data, grass below 25 cm */
+  read();
+  fail_unless_equals_string(canopy, "tree");
+  fail_unless_equals_string(ground, "fit");
+  fail_unless_equals_float(zn, 0.0);
+  fail_unless_equals_float(zf, 0.0);
+  fail_unless_equals_float(hmin, 250.0);
+  fail_unless_equals_float(hmax, 0.0);
+  fail_unless_equals_float(ch, 0.0);
+  fail_unless_equals_float(cp, 0.0);
+  /* every value round-trips */
+  gst_util_set_object_arg(G_OBJECT(e), "canopy", "row");
+  gst_util_set_object_arg(G_OBJECT(e), "ground", "rig");
+  g_object_set(e, "zone-near", 1500.0, "zone-far", 2600.0, "min-height", -100.0, "max-height",
+               3500.0, "camera-height", 1200.0, "camera-pitch", -12.5, NULL);
+  read();
+  fail_unless_equals_string(canopy, "row");
+  fail_unless_equals_string(ground, "rig");
+  fail_unless_equals_float(zn, 1500.0);
+  fail_unless_equals_float(zf, 2600.0);
+  fail_unless_equals_float(hmin, -100.0);
+  fail_unless_equals_float(hmax, 3500.0);
+  fail_unless_equals_float(ch, 1200.0);
+  fail_unless_equals_float(cp, -12.5);
+  gst_util_set_object_arg(G_OBJECT(e), "canopy", "off");
+  gst_util_set_object_arg(G_OBJECT(e), "ground", "off");
+  read();
+  fail_unless_equals_string(canopy, "off");
+  fail_unless_equals_string(ground, "off");
+  /* the ranges' ends are taken, beyond them GLib refuses and keeps the value */
+  g_object_set(e, "zone-near", 1e6, "zone-far", 0.0, "min-height", -1e5, "max-height", 1e5,
+               "camera-height", 1e5, "camera-pitch", 80.0, NULL);
+  read();
+  fail_unless_equals_float(zn, 1e6);
+  fail_unless_equals_float(hmin, -1e5);
+  fail_unless_equals_float(hmax, 1e5);
+  fail_unless_equals_float(ch, 1e5);
+  fail_unless_equals_float(cp, 80.0);
+  ASSERT_WARNING(g_object_set(e, "zone-near", -1.0, NULL));
+  ASSERT_WARNING(g_object_set(e, "zone-far", 2e6, NULL));
+  ASSERT_WARNING(g_object_set(e, "min-height", 2e5, NULL));
+  ASSERT_WARNING(g_object_set(e, "max-height", -1.0, NULL));
+  ASSERT_WARNING(g_object_set(e, "camera-height", -5.0, NULL));
+  ASSERT_WARNING(g_object_set(e, "camera-pitch", 81.0, NULL));
+  ASSERT_WARNING(g_object_set(e, "camera-pitch", -81.0, NULL));
+  read();
+  fail_unless_equals_float(zn, 1e6);
+  fail_unless_equals_float(zf, 0.0);
+  fail_unless_equals_float(hmin, -1e5);
+  fail_unless_equals_float(hmax, 1e5);
+  fail_unless_equals_float(ch, 1e5);
+  fail_unless_equals_float(cp, 80.0);
+  gst_util_set_object_arg(G_OBJECT(e), "canopy", "forest");
+  read();
+  fail_unless_equals_string(canopy, "off");
+  g_free(canopy);
+  g_free(ground);
+  gst_object_unref(e);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_orchard_canopy_is_the_tree_in_front)
+{
+  OrchardRun r = run_orchard("");
+  fail_unless(r.error == nullptr);
+  fail_unless(r.buffer);
+  fail_unless_equals_int(r.warnings, 0);
+  fail_unless(r.canopy_meta, "no canopy meta with the default canopy=tree");
+  fail_unless_equals_int(r.mode, GST_TREE_STEREO_CANOPY_TREE);
+  fail_unless(r.canopy_present);
+  /* the tree in front's width as the left camera sees it at its centre's depth */
+  const double projected = r.truth_width_m * r.fx / r.truth_z_m;
+  const double centre_px = r.cx + r.fx * r.truth_x_m / r.truth_z_m;
+  g_print("[ orchard ] canopy box x %d w %d, vegetation box x %d w %d, tree projected %.1f px "
+          "about x %.1f; %u points, %u invalid, dropped-zone %u, valid off the canopy %u, "
+          "invalid on it %u\n",
+          r.canopy_x, r.canopy_w, r.veg_x, r.veg_w, projected, centre_px, r.n_points,
+          r.n_invalid, r.stats.dropped_zone, r.valid_off_canopy, r.invalid_on_canopy);
+  fail_unless(std::abs(r.canopy_w - projected) <= 0.15 * projected, "canopy %d px, tree %.1f px",
+              r.canopy_w, projected);
+  fail_unless(std::abs(r.canopy_x + 0.5 * r.canopy_w - centre_px) <= 0.15 * projected,
+              "canopy centred at %.1f px, the tree at %.1f px", r.canopy_x + 0.5 * r.canopy_w,
+              centre_px);
+  /* the colour mask holds the neighbours and the next row too */
+  fail_unless(r.veg_w > 1.4 * r.canopy_w, "vegetation %d px, canopy %d px", r.veg_w, r.canopy_w);
+  /* points off the canopy (neighbours, next row, grass) are kept invalid and counted */
+  fail_unless(r.stats.dropped_zone > 0);
+  fail_unless(r.n_invalid >= r.stats.dropped_zone);
+  fail_unless_equals_int(r.n_invalid, r.stats.dropped_zone + r.stats.dropped_disparity +
+                                          r.stats.dropped_range + r.stats.dropped_outlier);
+  fail_unless(r.valid_off_canopy <= r.n_points / 100, "%u valid points off the canopy",
+              r.valid_off_canopy);
+  /* the message carries the same figures and the canopy fields */
+  fail_unless(r.message && r.message_canopy, "the stereodepth message lacks the canopy fields");
+  expect_stats_equal(r.message_stats, r.stats);
+  fail_unless_equals_int(r.message_stats.dropped_zone, r.stats.dropped_zone);
+  fail_unless_equals_int(r.message_fields.mode, GST_TREE_STEREO_CANOPY_TREE);
+  fail_unless(r.message_fields.view.present);
+  fail_unless(r.message_fields.near_m > 0 && r.message_fields.near_m < r.truth_z_m &&
+                  r.message_fields.far_m > r.truth_z_m && r.message_fields.far_m < 4.0,
+              "zone %.2f-%.2f m", r.message_fields.near_m, r.message_fields.far_m);
+  fail_unless(r.message_fields.n_segments >= 1);
+  fail_unless(r.message_fields.n_canopy_points > 0);
+  fail_unless(r.tree_present);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_orchard_canopy_off_row_and_empty_zone)
+{
+  /* canopy=off: no canopy meta, nothing dropped for the zone, treemetrics measures colour */
+  OrchardRun off = run_orchard("canopy=off");
+  fail_unless(off.error == nullptr && off.buffer);
+  fail_if(off.canopy_meta);
+  fail_unless_equals_int(off.stats.dropped_zone, 0);
+  fail_unless(off.message);
+  fail_if(off.message_canopy, "canopy fields with canopy=off");
+  fail_unless_equals_int(off.warnings, 0);
+
+  /* canopy=row: the near row in view, wider than the tree in front */
+  OrchardRun tree = run_orchard("canopy=tree");
+  OrchardRun row = run_orchard("canopy=row");
+  fail_unless(row.error == nullptr && row.canopy_meta && row.canopy_present);
+  fail_unless_equals_int(row.mode, GST_TREE_STEREO_CANOPY_ROW);
+  fail_unless(row.message_canopy && row.message_fields.mode == GST_TREE_STEREO_CANOPY_ROW);
+  g_print("[ orchard ] canopy box width: tree %d px, row %d px\n", tree.canopy_w, row.canopy_w);
+  fail_unless(row.canopy_w > 1.3 * tree.canopy_w, "row %d px, tree %d px", row.canopy_w,
+              tree.canopy_w);
+
+  /* a spray zone between the rows: no canopy, and treemetrics says no tree */
+  OrchardRun empty = run_orchard("zone-near=3000 zone-far=4000");
+  fail_unless(empty.error == nullptr && empty.canopy_meta);
+  fail_if(empty.canopy_present);
+  fail_unless(empty.message_canopy);
+  fail_if(empty.message_fields.view.present);
+  fail_unless_equals_float(empty.message_fields.near_m, 3.0);
+  fail_unless_equals_float(empty.message_fields.far_m, 4.0);
+  fail_if(empty.tree_present, "treemetrics found a tree where the zone holds none");
+}
+GST_END_TEST;
+
+GST_START_TEST(test_canopy_settings_that_cannot_run_are_errors)
+{
+  struct Case {
+    const char *props, *names;
+  } cases[] = {
+      {"ground=rig", "camera-height"},
+      {"zone-near=3000 zone-far=2000", "zone-far"},
+      {"min-height=500 max-height=400", "max-height"},
+  };
+  for (const Case &c : cases) {
+    OrchardRun r = run_orchard(c.props);
+    fail_unless(r.error != nullptr, "%s: no error", c.props);
+    GError *err = nullptr;
+    gchar *dbg = nullptr;
+    gst_message_parse_error(r.error, &err, &dbg);
+    fail_unless(err->domain == GST_RESOURCE_ERROR, "%s: domain %s", c.props,
+                g_quark_to_string(err->domain));
+    fail_unless_equals_int(err->code, GST_RESOURCE_ERROR_SETTINGS);
+    fail_unless(strstr(err->message, c.names) != nullptr, "%s: %s", c.props, err->message);
+    fail_unless(g_str_has_prefix(GST_OBJECT_NAME(GST_MESSAGE_SRC(r.error)), "stereodepth"));
+    g_error_free(err);
+    g_free(dbg);
+    gst_message_unref(r.error);
+  }
+  /* ground=rig with camera-height runs */
+  OrchardRun ok = run_orchard("ground=rig camera-height=1000");
+  fail_unless(ok.error == nullptr && ok.canopy_meta);
+  /* canopy=off does not use them: no error */
+  OrchardRun off = run_orchard("canopy=off ground=rig");
+  fail_unless(off.error == nullptr && !off.canopy_meta);
+}
+GST_END_TEST;
+
 static Suite *stereodepth_suite(void)
 {
   Suite *s = suite_create("stereodepth");
@@ -652,6 +1025,10 @@ static Suite *stereodepth_suite(void)
   tcase_add_test(tc, test_dense_without_vegetation_uses_the_whole_view);
   tcase_add_test(tc, test_sparse_densify_grid_on_the_canopy);
   tcase_add_test(tc, test_sparse_densify_without_vegetation_warns_once);
+  tcase_add_test(tc, test_canopy_properties_round_trip);
+  tcase_add_test(tc, test_orchard_canopy_is_the_tree_in_front);
+  tcase_add_test(tc, test_orchard_canopy_off_row_and_empty_zone);
+  tcase_add_test(tc, test_canopy_settings_that_cannot_run_are_errors);
   return s;
 }
 
