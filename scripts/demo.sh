@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The README's main command: installs what is missing, configures, builds, and runs the main job
-# (treestereo-measure) on the embedded synthetic orchard - no camera, no files needed. Prints a
+# (treestereo-measure) on the embedded synthetic orchard row (the tree in front among its
+# neighbours, the next row behind) - no camera, no files needed. Prints a
 # line of measurements per stereo frame and writes out/demo.jsonl (one JSON object per frame)
 # and out/demo.mp4 (the annotated side-by-side video). Extra arguments go to
 # treestereo-measure (see build/tools/treestereo-measure --help).

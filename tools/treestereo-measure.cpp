@@ -16,6 +16,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -41,8 +42,10 @@ struct Options {
   gint pair_queue = 8;
   gint64 seed = 1;
   gdouble distance = 2.0, speed = 0.5, light = 1.0;
+  gchar *scene = nullptr; // synthetic: lab, orchard (default) or hedgerow
   // analysis
   gchar *index = nullptr, *method = nullptr, *mode = nullptr;
+  gchar *canopy = nullptr; // stereodepth canopy: tree, row or off
   gdouble scale = -1, smoothing = 0, min_depth = 500, max_depth = 10000;
   gint bands = 4;
   gboolean no_rectify = FALSE;
@@ -58,7 +61,7 @@ struct Options {
   {
     // GOption fills these with g_strdup'ed strings
     for (gchar *s : {left, right, camera_left, camera_right, camera_caps, calibration, size,
-                     index, method, mode, json, csv, record})
+                     scene, index, method, mode, canopy, json, csv, record})
       g_free(s);
   }
 };
@@ -69,6 +72,7 @@ const gchar *kSummary =
     "\n"
     "Inputs (one of):\n"
     "  --synthetic (the default with no inputs): the built-in orchard, a sprayer driving by\n"
+    "    (--scene orchard|hedgerow|lab)\n"
     "  --left PATTERN --right PATTERN: image sequences (left_%04d.jpg) or video files\n"
     "  --camera-left NAME --camera-right NAME: two Aravis cameras (name, serial or IP)\n"
     "Files and cameras need --calibration (OpenCV YAML/XML, or 'left.yaml;right.yaml' ROS).\n"
@@ -161,6 +165,7 @@ struct Job {
   Options o;
   std::string calibration; // path used by stereorectify
   std::string temp_calibration;
+  std::string scene = "orchard"; // synthetic: treetestsrc's scene
   int total_frames = -1; // when known
   GstElement *pipeline = nullptr;
   GMainLoop *loop = nullptr;
@@ -315,7 +320,7 @@ void print_progress(Job &job, const GstTreeStereoMetricsMeta *mm)
   if (mm && mm->metrics.tree_present) {
     const GstTreeStereoMetrics &m = mm->metrics;
     std::printf("frame %4" G_GUINT64_FORMAT "  distance %.3f m  height %s%.3f m  width %s%.3f m  "
-                "thickness %.3f m  area %.3f m2  points %u\n",
+                "thickness %.3f m  area %.3f m2  points %u  confidence %.2f\n",
                 job.frames, m.distance_m,
                 (m.clipped & (GST_TREE_STEREO_CLIPPED_TOP | GST_TREE_STEREO_CLIPPED_BOTTOM))
                     ? ">="
@@ -324,7 +329,7 @@ void print_progress(Job &job, const GstTreeStereoMetricsMeta *mm)
                 (m.clipped & (GST_TREE_STEREO_CLIPPED_LEFT | GST_TREE_STEREO_CLIPPED_RIGHT))
                     ? ">="
                     : "",
-                m.width_m, m.thickness_m, m.area_m2, m.n_points);
+                m.width_m, m.thickness_m, m.area_m2, m.n_points, m.confidence);
   } else {
     std::printf("frame %4" G_GUINT64_FORMAT "  no tree\n", job.frames);
   }
@@ -426,7 +431,8 @@ std::string build_description(Job &job)
     job.total_frames = frames;
     for (int v = 0; v < 2; v++) {
       std::ostringstream s;
-      s << "treetestsrc view=" << (v == 0 ? "left" : "right") << " seed=" << o.seed
+      s << "treetestsrc view=" << (v == 0 ? "left" : "right") << " scene=" << job.scene
+        << " seed=" << o.seed
         << " distance=" << o.distance << " speed=" << o.speed << " light=" << o.light
         << " num-buffers=" << frames << " ! video/x-raw,format=RGB,width=" << w
         << ",height=" << h << ",framerate=" << fps << "/1";
@@ -471,6 +477,7 @@ std::string build_description(Job &job)
     << (o.scale > 0 ? " scale=" + std::to_string(o.scale) : "") << " min-depth=" << o.min_depth
     << " max-depth=" << o.max_depth;
   d << " ! stereodepth name=depth" << (o.mode ? std::string(" mode=") + o.mode : "")
+    << (o.canopy ? std::string(" canopy=") + o.canopy : "")
     << " min-depth=" << o.min_depth << " max-depth=" << o.max_depth;
   d << " ! treemetrics name=metrics bands=" << o.bands << " smoothing=" << o.smoothing;
   if (o.record) {
@@ -541,10 +548,18 @@ int run(int argc, char **argv)
        "M"},
       {"speed", 0, 0, G_OPTION_ARG_DOUBLE, &o.speed, "Synthetic sprayer speed, m/s (0.5)", "M/S"},
       {"light", 0, 0, G_OPTION_ARG_DOUBLE, &o.light, "Synthetic light level (1.0)", "L"},
+      {"scene", 0, 0, G_OPTION_ARG_STRING, &o.scene,
+       "Synthetic scene: orchard (a row of trees on grass, a row behind; default), hedgerow or "
+       "lab (the tree alone on soil)",
+       "KIND"},
       {"index", 0, 0, G_OPTION_ARG_STRING, &o.index, "exgsegment index", "NAME"},
       {"method", 0, 0, G_OPTION_ARG_STRING, &o.method, "siftmatch method", "NAME"},
       {"scale", 0, 0, G_OPTION_ARG_DOUBLE, &o.scale, "siftmatch detection scale", "S"},
       {"mode", 0, 0, G_OPTION_ARG_STRING, &o.mode, "stereodepth mode (sparse|dense)", "MODE"},
+      {"canopy", 0, 0, G_OPTION_ARG_STRING, &o.canopy,
+       "What the canopy is, decided in 3D by stereodepth: tree (the tree in front; default), "
+       "row (the near row in view) or off (the colour mask)",
+       "tree|row|off"},
       {"min-depth", 0, 0, G_OPTION_ARG_DOUBLE, &o.min_depth, "Nearest canopy depth, mm (500)",
        "MM"},
       {"max-depth", 0, 0, G_OPTION_ARG_DOUBLE, &o.max_depth, "Farthest canopy depth, mm (10000)",
@@ -588,6 +603,20 @@ int run(int argc, char **argv)
     usage_error("--bands must be 1..64");
   if (o.smoothing < 0 || o.smoothing >= 1)
     usage_error("--smoothing must be in [0, 1)");
+  if (o.canopy && std::strcmp(o.canopy, "tree") != 0 && std::strcmp(o.canopy, "row") != 0 &&
+      std::strcmp(o.canopy, "off") != 0)
+    usage_error(std::string("--canopy expects tree, row or off, got '") + o.canopy + "'");
+  if (o.scene && !o.synthetic)
+    usage_error("--scene is for --synthetic (the built-in scene)");
+  SceneKind kind = SceneKind::Orchard;
+  if (o.scene) {
+    try {
+      kind = scene_kind_from_name(o.scene);
+    } catch (const std::exception &e) {
+      usage_error(std::string("--scene: ") + e.what());
+    }
+  }
+  job.scene = scene_kind_name(kind);
 
   if (o.synthetic) {
     // the rig's true calibration, written before the pipeline starts
@@ -600,6 +629,7 @@ int run(int argc, char **argv)
     p.distance_mm = o.distance * 1000.0;
     p.speed_m_s = o.speed;
     p.light = o.light;
+    p.kind = kind;
     gchar *dir = g_dir_make_tmp("treestereo-measure-XXXXXX", nullptr);
     job.temp_calibration = std::string(dir) + "/rig.yml";
     g_free(dir);

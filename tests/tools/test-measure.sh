@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # treestereo-measure end to end, as the README's main command runs it:
-#  1. the synthetic default: one JSON object per frame with DESIGN.md's fields, a CSV row per
-#     frame, and an MP4 that decodes to exactly as many frames; distances near the truth;
+#  1. the synthetic default (an orchard row, the tree in front decided in 3D): one JSON object
+#     per frame with DESIGN.md's fields, a CSV row per frame, a summary line per frame with the
+#     confidence, and an MP4 that decodes to exactly as many frames; distances near the truth;
+#     --scene and --canopy reach treetestsrc and stereodepth (canopy_mode in the JSON);
 #  2. the committed image sequences with their calibration, as files and as MP4 videos;
-#  3. usage errors exit 2, pipeline errors exit 1 with a message naming the problem;
+#  3. usage errors exit 2 (also an unknown --scene or --canopy, --scene without --synthetic),
+#     pipeline errors exit 1 with a message naming the problem;
 #  4. Ctrl-C finishes the files: the recording plays and holds every measured frame.
 # Exit 77 (skipped) when the H.264 encoder/decoder is not installed.
 set -uo pipefail
@@ -15,6 +18,15 @@ done
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
+
+# Every line of a JSON-lines file has this canopy_mode.
+canopy_mode_is() { # file mode
+  python3 - "$@" <<'PY'
+import json, sys
+modes = {json.loads(l)["canopy_mode"] for l in open(sys.argv[1]) if l.strip()}
+assert modes == {sys.argv[2]}, f"canopy_mode {sorted(modes)}, expected {sys.argv[2]}"
+PY
+}
 
 decoded_frames() {
   gst-launch-1.0 -v filesrc location="$1" ! qtdemux ! h264parse ! avdec_h264 ! \
@@ -63,10 +75,21 @@ PY
   --record "$tmp/s.mp4" --points --matches >"$tmp/s.out" 2>&1 || { cat "$tmp/s.out"; fail "synthetic run"; }
 check_json "$tmp/s.jsonl" 6 0.02 points_mm,matches || fail "synthetic JSON"
 [ "$(grep -c '^frame ' "$tmp/s.out")" -eq 6 ] || { cat "$tmp/s.out"; fail "not one summary line per frame"; }
+[ "$(grep -cE '^frame .* confidence [01]\.[0-9]{2}$' "$tmp/s.out")" -eq 6 ] || { cat "$tmp/s.out"; fail "the summary lines do not show the confidence"; }
+canopy_mode_is "$tmp/s.jsonl" tree || fail "the synthetic default is not the tree in front"
 [ "$(wc -l <"$tmp/s.csv")" -eq 7 ] || fail "CSV should hold a header and 6 rows"
 head -1 "$tmp/s.csv" | grep -q '^frame,pts_ns,tree_present,distance_m.*,confidence$' || fail "CSV header"
 n=$(decoded_frames "$tmp/s.mp4")
 [ "$n" -eq 6 ] || fail "the recording decodes to $n frames, expected 6"
+
+# 1b. --scene and --canopy
+"$measure" --synthetic --scene lab --canopy off --frames 2 --size 640x480 --json "$tmp/l.jsonl" \
+  --quiet >"$tmp/l.out" 2>&1 || { cat "$tmp/l.out"; fail "--scene lab --canopy off run"; }
+check_json "$tmp/l.jsonl" 2 0.02 "" || fail "lab JSON"
+canopy_mode_is "$tmp/l.jsonl" colour || fail "--canopy off"
+"$measure" --synthetic --scene hedgerow --canopy row --frames 2 --size 640x480 \
+  --json "$tmp/h.jsonl" --quiet >"$tmp/h.out" 2>&1 || { cat "$tmp/h.out"; fail "--scene hedgerow --canopy row run"; }
+canopy_mode_is "$tmp/h.jsonl" row || fail "--canopy row"
 
 # 2. image sequences (the committed fixtures) with their calibration
 fx="$src/tests/fixtures/seq-static"
@@ -89,6 +112,13 @@ check_json "$tmp/v.jsonl" 8 1 "" || fail "video file JSON"
 [ $? -eq 2 ] || fail "--left without --right should be a usage error (2)"
 "$measure" --left "$fx/left_%04d.jpg" --right "$fx/right_%04d.jpg" >"$tmp/e.out" 2>&1
 [ $? -eq 2 ] && grep -q -- "--calibration" "$tmp/e.out" || fail "files without --calibration: $(cat "$tmp/e.out")"
+"$measure" --synthetic --scene forest --frames 1 >"$tmp/e.out" 2>&1
+[ $? -eq 2 ] && grep -q "orchard" "$tmp/e.out" || fail "--scene forest: $(cat "$tmp/e.out")"
+"$measure" --synthetic --canopy bush --frames 1 >"$tmp/e.out" 2>&1
+[ $? -eq 2 ] && grep -q -- "--canopy" "$tmp/e.out" || fail "--canopy bush: $(cat "$tmp/e.out")"
+"$measure" --left "$fx/left_%04d.jpg" --right "$fx/right_%04d.jpg" --calibration \
+  "$fx/calibration.yml" --scene lab >"$tmp/e.out" 2>&1
+[ $? -eq 2 ] && grep -q -- "--scene" "$tmp/e.out" || fail "--scene with files: $(cat "$tmp/e.out")"
 echo "not a calibration" >"$tmp/bad.yml"
 "$measure" --left "$fx/left_%04d.jpg" --right "$fx/right_%04d.jpg" --calibration "$tmp/bad.yml" \
   --quiet >"$tmp/e.out" 2>&1
@@ -110,4 +140,4 @@ lines=$(wc -l <"$tmp/c.jsonl")
 [ "$lines" -ge 4 ] && [ "$lines" -lt 500 ] || fail "$lines frames measured before Ctrl-C"
 n=$(decoded_frames "$tmp/c.mp4")
 [ "$n" -eq "$lines" ] || fail "after Ctrl-C the recording decodes to $n frames, $lines were measured"
-echo "OK: synthetic 6 frames, fixtures 8 frames as images and as MP4, errors, Ctrl-C after $lines frames"
+echo "OK: synthetic 6 frames (orchard, lab, hedgerow), fixtures 8 frames as images and as MP4, errors, Ctrl-C after $lines frames"
