@@ -13,42 +13,29 @@
 // Truth: distance and thickness are the visible canopy surface's median and p95-p05 depth in the
 // rectified-left frame (the renderer's truth rotated by the geometry meta's R1), height and width
 // the canopy's true 3D extents: the same definitions treemetrics uses.
-#include "sweep.hpp"
-#include "treestereo/calibration.hpp"
-#include "treestereo/scene.hpp"
+#include "chain_sweep.hpp"
 #include "treestereo/stats.hpp"
-
-#include <gst/app/gstappsink.h>
-#include <gst/gst.h>
-#include <gst/treestereo/treestereo-meta.h>
-#include <glib/gstdio.h>
 
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
 #include <vector>
 
 using namespace treestereo;
+using treestereo::bench::ElementProps;
 using treestereo::bench::parse_list;
 using treestereo::bench::parse_sizes;
+using treestereo::bench::RigFile;
+using treestereo::bench::SceneConfig;
 using treestereo::bench::Sweep;
 using treestereo::bench::sweep_option;
 
 namespace {
 
-struct Config {
-  cv::Size size;
-  double distance_m;
-  std::uint64_t seed;
-  double light;
-  SceneKind scene = SceneKind::Lab;
-};
-
 struct Result {
-  Config c;
+  SceneConfig c;
   int frame = 0;
   bool present = false;
   double distance = 0, height = 0, width = 0, thickness = 0;
@@ -57,56 +44,19 @@ struct Result {
   double ms_per_frame = 0;
 };
 
-SceneParams scene_of(const Config &c)
-{
-  SceneParams p;
-  p.image_size = c.size;
-  p.distance_mm = c.distance_m * 1000.0;
-  p.seed = c.seed;
-  p.light = c.light;
-  p.kind = c.scene;
-  return p;
-}
-
-// Extra properties per element, gst-launch syntax.
-struct ElementProps {
-  std::string exgsegment, siftmatch, stereodepth, treemetrics, treetestsrc;
-};
-
-std::vector<Result> run_config(const Config &c, int frames, const std::string &calib,
+std::vector<Result> run_config(const SceneConfig &c, int frames, const std::string &calib,
                                const ElementProps &props)
 {
-  char desc[4096];
-  const std::string src = std::string("scene=") + scene_kind_name(c.scene) + " " + props.treetestsrc;
-  std::snprintf(desc, sizeof desc,
-                "stereorectify name=r calibration=%s ! exgsegment %s ! siftmatch %s ! stereodepth %s ! "
-                "treemetrics post-messages=false %s ! appsink name=out sync=false "
-                "treetestsrc view=left seed=%llu distance=%g light=%g num-buffers=%d %s "
-                "truth-maps=false ! video/x-raw,format=RGB,width=%d,height=%d ! r.left "
-                "treetestsrc view=right seed=%llu distance=%g light=%g num-buffers=%d %s "
-                "truth-maps=false ! video/x-raw,format=RGB,width=%d,height=%d ! r.right",
-                calib.c_str(), props.exgsegment.c_str(), props.siftmatch.c_str(),
-                props.stereodepth.c_str(), props.treemetrics.c_str(), (unsigned long long)c.seed,
-                c.distance_m, c.light, frames, src.c_str(), c.size.width, c.size.height,
-                (unsigned long long)c.seed, c.distance_m, c.light, frames, src.c_str(),
-                c.size.width, c.size.height);
-  GError *err = nullptr;
-  GstElement *p = gst_parse_launch(desc, &err);
-  if (!p || err)
-    throw std::runtime_error(std::string("pipeline: ") + (err ? err->message : "?"));
-  GstElement *sink = gst_bin_get_by_name(GST_BIN(p), "out");
-  const gint64 t0 = g_get_monotonic_time();
-  gst_element_set_state(p, GST_STATE_PLAYING);
-
-  SceneRenderer renderer(scene_of(c)); // for the truth, in the same frames
+  const std::string tail = "stereodepth " + props.stereodepth + " ! treemetrics post-messages=false " +
+                           props.treemetrics + " ! appsink name=out sync=false";
+  SceneRenderer renderer(c.params()); // for the truth, in the same frames
   std::vector<Result> out;
-  while (GstSample *s = gst_app_sink_try_pull_sample(GST_APP_SINK(sink), 120 * GST_SECOND)) {
-    GstBuffer *buf = gst_sample_get_buffer(s);
+  const auto on_frame = [&](int frame, const std::vector<GstBuffer *> &buf) {
     Result r;
     r.c = c;
-    r.frame = int(out.size());
-    const GstTreeStereoGeometryMeta *g = gst_buffer_get_tree_stereo_geometry_meta(buf);
-    const GstTreeStereoMetricsMeta *m = gst_buffer_get_tree_stereo_metrics_meta(buf);
+    r.frame = frame;
+    const GstTreeStereoGeometryMeta *g = gst_buffer_get_tree_stereo_geometry_meta(buf[0]);
+    const GstTreeStereoMetricsMeta *m = gst_buffer_get_tree_stereo_metrics_meta(buf[0]);
     if (g && m && m->metrics.tree_present) {
       r.present = true;
       r.distance = m->metrics.distance_m;
@@ -116,36 +66,17 @@ std::vector<Result> run_config(const Config &c, int frames, const std::string &c
       r.points = m->metrics.n_points;
       r.clipped = m->metrics.clipped;
     }
-    cv::Mat rgb;
-    GroundTruth t;
-    renderer.render(0, std::uint64_t(r.frame), rgb, &t);
-    cv::Matx33d R1 = cv::Matx33d::eye();
-    if (g)
-      for (int i = 0; i < 9; i++)
-        R1.val[i] = g->R1[i];
-    const GroundTruth tr = truth_in_frame(t, R1);
+    const GroundTruth tr = bench::rectified_truth(renderer, frame, g);
     r.t_distance = tr.distance_m;
     r.t_thickness = tr.thickness_m;
     r.t_height = tr.canopy_height_m;
     r.t_width = tr.canopy_width_m;
     out.push_back(r);
-    gst_sample_unref(s);
-  }
-  GstBus *bus = gst_element_get_bus(p);
-  if (GstMessage *msg = gst_bus_pop_filtered(bus, GST_MESSAGE_ERROR)) {
-    GError *e = nullptr;
-    gst_message_parse_error(msg, &e, nullptr);
-    std::fprintf(stderr, "bench-accuracy: %s\n", e->message);
-    g_error_free(e);
-    gst_message_unref(msg);
-  }
-  gst_object_unref(bus);
-  const double ms = (g_get_monotonic_time() - t0) / 1000.0;
+  };
+  const double ms = bench::run_chain(bench::chain_description(c, frames, calib, props, tail),
+                                     {"out"}, on_frame, "bench-accuracy");
   for (Result &r : out)
-    r.ms_per_frame = ms / std::max<size_t>(1, out.size());
-  gst_element_set_state(p, GST_STATE_NULL);
-  gst_object_unref(sink);
-  gst_object_unref(p);
+    r.ms_per_frame = ms;
   return out;
 }
 
@@ -191,9 +122,7 @@ std::string pct(const std::vector<double> &v, bool abs_median = false)
 
 int main(int argc, char **argv)
 {
-  if (!g_getenv("GST_PLUGIN_PATH_1_0") && !g_getenv("GST_PLUGIN_PATH"))
-    g_setenv("GST_PLUGIN_PATH_1_0", TREESTEREO_PLUGIN_BUILD_DIR, TRUE);
-  gst_init(&argc, &argv);
+  bench::init_gstreamer(argc, argv);
   Sweep sweep{"1296x972,2592x1944", "1.5:2.5:0.1", "1,2,3", "0.7,1.0,1.3"};
   std::string csv;
   ElementProps props;
@@ -201,22 +130,12 @@ int main(int argc, char **argv)
   SceneKind scene = SceneKind::Lab;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
-    if (sweep_option(a, v, sweep))
+    if (sweep_option(a, v, sweep) || bench::element_option(a, v, props))
       continue;
     if (a == "--frames")
       frames = std::stoi(v);
     else if (a == "--csv")
       csv = v;
-    else if (a == "--siftmatch")
-      props.siftmatch = v;
-    else if (a == "--exgsegment")
-      props.exgsegment = v;
-    else if (a == "--treemetrics")
-      props.treemetrics = v;
-    else if (a == "--stereodepth")
-      props.stereodepth = v;
-    else if (a == "--treetestsrc")
-      props.treetestsrc = v;
     else if (a == "--scene")
       scene = scene_kind_from_name(v);
     else {
@@ -225,17 +144,13 @@ int main(int argc, char **argv)
     }
   }
   std::vector<Result> all;
-  gchar *dir = g_dir_make_tmp("bench-accuracy-XXXXXX", nullptr);
   for (const cv::Size &size : parse_sizes(sweep.sizes)) {
-    SceneParams p;
-    p.image_size = size;
-    const std::string calib = std::string(dir) + "/rig.yml";
-    save_calibration(rig_calibration(p), calib);
+    const RigFile rig(size);
     for (double d : parse_list(sweep.distances))
       for (double s : parse_list(sweep.seeds))
         for (double l : parse_list(sweep.lights)) {
-          Config c{size, d, std::uint64_t(s), l, scene};
-          std::vector<Result> r = run_config(c, frames, calib, props);
+          const SceneConfig c(size, d, std::uint64_t(s), l, scene);
+          std::vector<Result> r = run_config(c, frames, rig.path(), props);
           for (const Result &x : r)
             std::fprintf(stderr,
                          "%dx%d d=%.1f seed=%llu light=%.1f: %s distance %.4f (truth %.4f) "
@@ -247,10 +162,7 @@ int main(int argc, char **argv)
                          x.ms_per_frame);
           all.insert(all.end(), r.begin(), r.end());
         }
-    g_unlink(calib.c_str());
   }
-  g_rmdir(dir);
-  g_free(dir);
 
   if (!csv.empty()) {
     std::ofstream f(csv);

@@ -4,9 +4,13 @@
 
 #include <opencv2/core.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <initializer_list>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace treestereo::bench {
@@ -46,18 +50,51 @@ struct Sweep {
   std::string sizes, distances, seeds, lights;
 };
 
+// Stores `value` into the field `fields` names for `option`; false when it names none.
+inline bool take_option(const std::string &option, const std::string &value,
+                        std::initializer_list<std::pair<const char *, std::string *>> fields)
+{
+  for (const auto &[name, field] : fields)
+    if (option == name) {
+      *field = value;
+      return true;
+    }
+  return false;
+}
+
 // Takes one of the sweep's options ("--sizes", "--distances", "--seeds", "--lights") with its
 // value into `s`; false for any other option.
 inline bool sweep_option(const std::string &option, const std::string &value, Sweep &s)
 {
-  std::string *field = option == "--sizes"       ? &s.sizes
-                       : option == "--distances" ? &s.distances
-                       : option == "--seeds"     ? &s.seeds
-                       : option == "--lights"    ? &s.lights
-                                                 : nullptr;
-  if (field)
-    *field = value;
-  return field != nullptr;
+  return take_option(option, value,
+                     {{"--sizes", &s.sizes},
+                      {"--distances", &s.distances},
+                      {"--seeds", &s.seeds},
+                      {"--lights", &s.lights}});
 }
+
+// Mean and worst of the absolute errors of a set of frames (or bands).
+struct AbsErrors {
+  std::vector<double> abs;
+  void add(double error) { abs.push_back(std::abs(error)); }
+  std::size_t n() const { return abs.size(); }
+  double mean() const
+  {
+    double s = 0;
+    for (double a : abs)
+      s += a;
+    return abs.empty() ? 0.0 : s / double(abs.size());
+  }
+  double worst() const { return abs.empty() ? 0.0 : *std::max_element(abs.begin(), abs.end()); }
+  // "mean / worst" with `scale` (100 for %) and `decimals`; "-" when empty.
+  std::string cell(double scale = 100.0, int decimals = 2) const
+  {
+    if (abs.empty())
+      return "-";
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f / %.*f", decimals, scale * mean(), decimals, scale * worst());
+    return b;
+  }
+};
 
 } // namespace treestereo::bench

@@ -439,8 +439,9 @@ std::vector<Band> compute_bands(const MetricsParams &p, const RowExtents &e,
   for (int i = 0; i < n; ++i) {
     Band &b = bands[std::size_t(i)];
     const double y0 = top + i * step, y1 = top + (i + 1) * step;
+    const cv::Range rows = band_rows(e.bbox, n, i);
     int xl = -1, xr = -1;
-    for (int row = std::max(e.bbox.y, int(std::ceil(y0))); row < y1 && row < e.bbox.br().y; ++row) {
+    for (int row = rows.start; row < rows.end; ++row) {
       if (e.xl(row) < 0)
         continue;
       xl = xl < 0 ? e.xl(row) : std::min(xl, e.xl(row));
@@ -455,9 +456,7 @@ std::vector<Band> compute_bands(const MetricsParams &p, const RowExtents &e,
     b.left_m = c.x((xl - 0.5 - g.cx[LEFT]) / g.fx) * kMmToM;
     b.right_m = c.x((xr + 0.5 - g.cx[LEFT]) / g.fx) * kMmToM;
     b.width_m = b.right_m - b.left_m;
-    // the band's rows are those with ceil(y0) <= row < y1, as above
-    b.fill = band_fill(mask, std::max(e.bbox.y, int(std::ceil(y0))),
-                       std::min(e.bbox.br().y, int(std::ceil(y1))));
+    b.fill = band_fill(mask, rows.start, rows.end);
     if (int(b.n_points) >= p.min_band_points) {
       b.depth_m = percentile(band_z[std::size_t(i)], p.band_depth_percentile) * kMmToM;
       b.depth_measured = true;
@@ -576,6 +575,15 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
     px[i] = cv::Point2f(float(pts[i].u), float(pts[i].v));
   m.confidence = depth_support(left.mask, px, p.support_radius * vs.width);
   return m;
+}
+
+cv::Range band_rows(const cv::Rect &bbox, int n_bands, int band)
+{
+  const double top = bbox.y - 0.5, step = double(bbox.height) / n_bands;
+  // rows with ceil(y0) <= row < y1, i.e. row < ceil(y1), inside the box
+  const int start = std::max(bbox.y, int(std::ceil(top + band * step)));
+  const int end = std::min(bbox.br().y, int(std::ceil(top + (band + 1) * step)));
+  return cv::Range(start, std::max(start, end));
 }
 
 double band_fill(const cv::Mat &mask, int row0, int row1, int *left, int *right)

@@ -161,6 +161,12 @@ struct TreeMetrics {
 double band_fill(const cv::Mat &mask, int row0, int row1, int *left = nullptr,
                  int *right = nullptr);
 
+// The image rows [start, end) of band `band` (0 = top) of `n_bands` over a silhouette whose
+// bounding box is `bbox`: the box's height split evenly from its top pixel edge (bbox.y - 0.5),
+// a row belonging to the band its centre falls in. How compute_tree_metrics() lays out
+// TreeMetrics::bands, public so that a ground truth is measured over the same rows.
+cv::Range band_rows(const cv::Rect &bbox, int n_bands, int band);
+
 // Throws std::runtime_error when the geometry is invalid, the mask's size is not the view size,
 // or the parameters are out of range.
 TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point3> &points,

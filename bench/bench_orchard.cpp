@@ -1,0 +1,600 @@
+// bench-orchard: the chain with the canopy decided in 3D (stereodepth canopy=tree|row) against
+// the synthetic orchard's exact truth, on tree seeds split into tuning and held-out sets.
+// Prints markdown tables.
+//
+//   bench-orchard [--only orchard|hedgerow] [--size 1296x972]
+//                 [--tuning-seeds 1,3,5,7] [--held-out-seeds 2,4,6,8]
+//                 [--distances 1.6:2.4:0.2] [--lights 0.7,1.0,1.3]      (orchard sweep)
+//                 [--layouts 0,1,2,3] (of the row layouts below)
+//                 [--hedgerow-distances 1.6:2.4:0.4] [--hedgerow-lights 1.0]
+//                 [--exgsegment "keep=all"] [--siftmatch ...] [--stereodepth ...]
+//                 [--treemetrics ...] [--masks DIR] (overlays of the frames that fail badly)
+//
+// Orchard sweep (scene orchard, stereodepth canopy=tree): each seed, distance and light in four
+// row layouts (the default gaps of 0.2-0.6 m, tight gaps of 0.2-0.3 m, the next row 3.0 m and
+// 4.5 m behind). The same frames go through a second stereodepth with canopy=off (the colour
+// silhouette alone, the baseline): one pipeline, teed after siftmatch. Truth as bench-accuracy
+// has it: distance = the median Z of the visible canopy of the tree in front in the
+// rectified-left frame (truth_in_frame with the geometry meta's R1), height and width its true
+// extents. A tree is in view when the truth's canopy_mask has pixels. Height errors count on
+// frames whose top and bottom are not clipped, width errors on frames whose left and right are
+// not (the chain's clipped flags): a clipped extent is a lower bound, not a measurement.
+//
+// Hedgerow sweep (scene hedgerow, stereodepth canopy=row): per band the chain's near-face depth
+// and fill against the truth over the SAME image rows (band_rows() of the chain's silhouette's
+// bounding box): the truth's near-row mask rectified (nearest neighbour, the rig's calibration
+// and the geometry meta's rectification) gives fill = band_fill() over those rows; the truth's
+// visible near-row points (row_points_mm in the rectified-left frame), projected to rectified
+// pixels, give the near-face depth = the 5th percentile of Z of those whose pixel row is in the
+// band (treemetrics' band-depth-percentile).
+#include "chain_sweep.hpp"
+#include "treestereo/metrics.hpp"
+#include "treestereo/stats.hpp"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iterator>
+#include <string>
+#include <vector>
+
+using namespace treestereo;
+using treestereo::bench::AbsErrors;
+using treestereo::bench::ElementProps;
+using treestereo::bench::parse_list;
+using treestereo::bench::parse_sizes;
+using treestereo::bench::RigFile;
+using treestereo::bench::SceneConfig;
+
+namespace {
+
+struct Layout {
+  const char *name;
+  double gap_min_m, gap_max_m, spacing_m; // -1: the scene's default
+};
+// The neighbours of the tree in front: default gaps, tight gaps, the next row near and far.
+const Layout kLayouts[] = {{"default gaps 0.2-0.6 m, next row 3.5 m", -1, -1, -1},
+                           {"tight gaps 0.2-0.3 m", 0.2, 0.3, -1},
+                           {"next row 3.0 m", -1, -1, 3.0},
+                           {"next row 4.5 m", -1, -1, 4.5}};
+
+std::string seeds_text(const std::vector<double> &seeds)
+{
+  std::string s;
+  for (double x : seeds)
+    s += (s.empty() ? "" : ",") + std::to_string(std::lround(x));
+  return s;
+}
+
+// A view's mask of a vegetation view (canopy meta), wrapped (valid while `map` is mapped).
+struct MappedMask {
+  GstBuffer *buf = nullptr;
+  GstMapInfo map{};
+  cv::Mat mat;
+  explicit MappedMask(const GstTreeStereoVegetationView &v)
+  {
+    if (v.present && v.mask && gst_buffer_map(v.mask, &map, GST_MAP_READ)) {
+      buf = v.mask;
+      mat = cv::Mat(int(v.mask_height), int(v.mask_width), CV_8UC1, map.data, v.mask_stride);
+    }
+  }
+  ~MappedMask()
+  {
+    if (buf)
+      gst_buffer_unmap(buf, &map);
+  }
+  MappedMask(const MappedMask &) = delete;
+  MappedMask &operator=(const MappedMask &) = delete;
+};
+
+// Truth maps of the left view resampled into the chain's rectified left view: nearest neighbour
+// through the rig's calibration (the distortion and camera matrix of the rendered view) and the
+// rectification stereorectify used (R1, fx, fy, cx, cy of the geometry meta).
+class TruthRectifier
+{
+public:
+  TruthRectifier(const StereoCalibration &calib, const GstTreeStereoGeometryMeta &g)
+  {
+    const cv::Matx33d R1 = bench::rectified_rotation(&g);
+    const cv::Matx33d P(g.fx[0], 0, g.cx[0], 0, g.fy[0], g.cy[0], 0, 0, 1);
+    cv::initUndistortRectifyMap(calib.M1, calib.D1, cv::Mat(R1), cv::Mat(P),
+                                cv::Size(int(g.view_width), int(g.view_height)), CV_32FC1, mx_,
+                                my_);
+  }
+  cv::Mat operator()(const cv::Mat &mask) const
+  {
+    cv::Mat out;
+    cv::remap(mask, out, mx_, my_, cv::INTER_NEAREST, cv::BORDER_CONSTANT, 0);
+    return out;
+  }
+
+private:
+  cv::Mat mx_, my_;
+};
+
+// The left rectified view of a side-by-side frame with the chain's canopy outlined in red and
+// the truth's in blue, written to `path`.
+void save_overlay(GstBuffer *buf, const GstTreeStereoGeometryMeta &g, const cv::Mat &chain,
+                  const cv::Mat &truth, const std::string &path)
+{
+  GstMapInfo map;
+  if (!gst_buffer_map(buf, &map, GST_MAP_READ))
+    return;
+  const int w = int(g.view_width), h = int(g.view_height);
+  const cv::Mat frame(h, 2 * w, CV_8UC3, map.data, map.size / std::size_t(h));
+  cv::Mat bgr;
+  cv::cvtColor(frame(cv::Rect(0, 0, w, h)), bgr, cv::COLOR_RGB2BGR);
+  gst_buffer_unmap(buf, &map);
+  for (const auto &[mask, colour] : {std::make_pair(truth, cv::Scalar(255, 64, 0)),
+                                     std::make_pair(chain, cv::Scalar(0, 0, 255))}) {
+    if (mask.empty())
+      continue;
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(mask.clone(), contours, cv::RETR_LIST, cv::CHAIN_APPROX_NONE);
+    cv::drawContours(bgr, contours, -1, colour, 2);
+  }
+  cv::imwrite(path, bgr);
+}
+
+// ---- Orchard sweep (canopy=tree) ----
+
+struct TreeFrame {
+  SceneConfig c;
+  int layout = 0;
+  bool held_out = false;
+  bool in_view = false, present = false;
+  double distance = 0, height = 0, width = 0, confidence = 0;
+  double t_distance = 0, t_height = 0, t_width = 0;
+  unsigned clipped = 0;
+};
+
+TreeFrame tree_frame(const TreeFrame &base, const GstTreeStereoMetricsMeta *m)
+{
+  TreeFrame f = base;
+  if (m && m->metrics.tree_present) {
+    f.present = true;
+    f.distance = m->metrics.distance_m;
+    f.height = m->metrics.height_m;
+    f.width = m->metrics.width_m;
+    f.clipped = m->metrics.clipped;
+    f.confidence = m->metrics.confidence;
+  }
+  return f;
+}
+
+bool height_clipped(unsigned c)
+{
+  return c & (GST_TREE_STEREO_CLIPPED_TOP | GST_TREE_STEREO_CLIPPED_BOTTOM);
+}
+bool width_clipped(unsigned c)
+{
+  return c & (GST_TREE_STEREO_CLIPPED_LEFT | GST_TREE_STEREO_CLIPPED_RIGHT);
+}
+
+struct TreeErrors {
+  int frames = 0, in_view = 0, answered_in_view = 0, answered_empty = 0;
+  int h_clipped = 0, w_clipped = 0;
+  AbsErrors h, w, d;
+  void add(const TreeFrame &f)
+  {
+    frames++;
+    in_view += f.in_view;
+    if (!f.present)
+      return;
+    if (!f.in_view) {
+      answered_empty++; // a tree reported where none is in view
+      return;
+    }
+    answered_in_view++;
+    d.add((f.distance - f.t_distance) / f.t_distance);
+    if (height_clipped(f.clipped))
+      h_clipped++;
+    else
+      h.add((f.height - f.t_height) / f.t_height);
+    if (width_clipped(f.clipped))
+      w_clipped++;
+    else
+      w.add((f.width - f.t_width) / f.t_width);
+  }
+};
+
+void print_tree_row(const std::string &set, const std::string &what, const TreeErrors &e)
+{
+  std::printf("| %s | %s | %d | %d / %d | %d | %s | %s | %s | %d / %d |\n", set.c_str(),
+              what.c_str(), e.frames, e.answered_in_view, e.in_view, e.answered_empty,
+              e.h.cell().c_str(), e.w.cell().c_str(), e.d.cell().c_str(), e.h_clipped, e.w_clipped);
+}
+
+// ---- Hedgerow sweep (canopy=row) ----
+
+struct BandRecord {
+  SceneConfig c;
+  bool held_out = false;
+  int band = 0;
+  bool present = false;
+  double depth = 0, fill = 0;
+  double t_depth = 0, t_fill = 0;
+  std::size_t t_points = 0; // truth near-row points in the band's rows
+};
+
+struct HedgeFrame {
+  SceneConfig c;
+  bool held_out = false, in_view = false, present = false;
+};
+
+// The truth of the chain's bands: fill over the same rows of the rectified truth row mask, and
+// the 5th percentile of Z of the truth's near-row points whose rectified pixel row is in them.
+std::vector<BandRecord> band_truth(const BandRecord &base, const GstTreeStereoMetrics &m,
+                                   const cv::Mat &chain_mask, const cv::Mat &truth_row_mask,
+                                   const GroundTruth &tr, const GstTreeStereoGeometryMeta &g)
+{
+  std::vector<BandRecord> out;
+  const cv::Rect bbox = cv::boundingRect(chain_mask);
+  const int n = int(m.n_bands);
+  std::vector<std::vector<double>> z(std::size_t(std::max(n, 0)));
+  std::vector<cv::Range> rows;
+  for (int i = 0; i < n; i++)
+    rows.push_back(band_rows(bbox, n, i));
+  for (const cv::Point3f &p : tr.row_points_mm) {
+    if (!(p.z > 0))
+      continue;
+    const int row = int(std::floor(g.fy[0] * p.y / p.z + g.cy[0] + 0.5));
+    for (int i = 0; i < n; i++)
+      if (row >= rows[std::size_t(i)].start && row < rows[std::size_t(i)].end)
+        z[std::size_t(i)].push_back(p.z);
+  }
+  for (int i = 0; i < n; i++) {
+    const GstTreeStereoBand &b = m.bands[i];
+    BandRecord r = base;
+    r.band = i;
+    r.present = b.present;
+    r.depth = b.depth_m;
+    r.fill = b.fill;
+    r.t_fill = band_fill(truth_row_mask, rows[std::size_t(i)].start, rows[std::size_t(i)].end);
+    r.t_points = z[std::size_t(i)].size();
+    if (r.t_points > 0)
+      r.t_depth = percentile(z[std::size_t(i)], 5.0) / 1000.0;
+    out.push_back(r);
+  }
+  return out;
+}
+
+struct BandErrors {
+  int bands = 0, no_truth = 0;
+  AbsErrors depth, fill;
+  void add(const BandRecord &r)
+  {
+    if (!r.present)
+      return;
+    bands++;
+    fill.add(r.fill - r.t_fill);
+    if (r.t_points == 0)
+      no_truth++;
+    else
+      depth.add((r.depth - r.t_depth) / r.t_depth);
+  }
+};
+
+struct Options {
+  cv::Size size{1296, 972};
+  std::vector<double> tuning{1, 3, 5, 7}, held_out{2, 4, 6, 8};
+  std::string distances = "1.6:2.4:0.2", lights = "0.7,1.0,1.3";
+  std::string hedge_distances = "1.6:2.4:0.4", hedge_lights = "1.0";
+  std::string only, masks;
+  std::vector<double> layouts{0, 1, 2, 3}; // indices into kLayouts
+  ElementProps props;
+};
+
+std::vector<std::pair<double, bool>> all_seeds(const Options &o)
+{
+  std::vector<std::pair<double, bool>> s;
+  for (double x : o.tuning)
+    s.emplace_back(x, false);
+  for (double x : o.held_out)
+    s.emplace_back(x, true);
+  return s;
+}
+
+std::string common_props(const Options &o)
+{
+  return "exgsegment \"" + o.props.exgsegment + "\", siftmatch \"" + o.props.siftmatch +
+         "\", stereodepth \"" + o.props.stereodepth + "\", treemetrics \"" + o.props.treemetrics +
+         "\"";
+}
+
+int saved_masks = 0;
+constexpr int kMaxSavedMasks = 8;
+
+void orchard_sweep(const Options &o)
+{
+  const RigFile rig(o.size);
+  const ElementProps &p = o.props;
+  const std::string branch =
+      "treemetrics post-messages=false " + p.treemetrics + " ! appsink sync=false name=";
+  const std::string tail = "tee name=t ! queue max-size-buffers=2 ! stereodepth canopy=tree " +
+                           p.stereodepth + " ! " + branch + "tree t. ! queue max-size-buffers=2 " +
+                           "! stereodepth canopy=off " + p.stereodepth + " ! " + branch + "off";
+  std::vector<TreeFrame> tree, off;
+  std::vector<int> layouts;
+  for (double x : o.layouts)
+    if (x >= 0 && x < double(std::size(kLayouts)))
+      layouts.push_back(int(x));
+  for (int li : layouts)
+    for (double d : parse_list(o.distances))
+      for (const auto &[seed, held] : all_seeds(o))
+        for (double l : parse_list(o.lights)) {
+          TreeFrame base;
+          base.c = SceneConfig(o.size, d, std::uint64_t(seed), l, SceneKind::Orchard);
+          base.c.row_gap_min_m = kLayouts[li].gap_min_m;
+          base.c.row_gap_max_m = kLayouts[li].gap_max_m;
+          base.c.row_spacing_m = kLayouts[li].spacing_m;
+          base.layout = li;
+          base.held_out = held;
+          const SceneRenderer renderer(base.c.params());
+          const auto on_frame = [&](int frame, const std::vector<GstBuffer *> &buf) {
+            const GstTreeStereoGeometryMeta *g = gst_buffer_get_tree_stereo_geometry_meta(buf[0]);
+            GroundTruth raw;
+            const GroundTruth tr = bench::rectified_truth(renderer, frame, g, &raw);
+            TreeFrame t = base;
+            t.in_view = cv::countNonZero(raw.canopy_mask) > 0;
+            t.t_distance = tr.distance_m;
+            t.t_height = tr.canopy_height_m;
+            t.t_width = tr.canopy_width_m;
+            const TreeFrame a = tree_frame(t, gst_buffer_get_tree_stereo_metrics_meta(buf[0]));
+            const TreeFrame b = tree_frame(t, gst_buffer_get_tree_stereo_metrics_meta(buf[1]));
+            tree.push_back(a);
+            off.push_back(b);
+            const double eh = a.present ? (a.height - a.t_height) / a.t_height : 0;
+            const double ew = a.present ? (a.width - a.t_width) / a.t_width : 0;
+            const double ed = a.present ? (a.distance - a.t_distance) / a.t_distance : 0;
+            std::fprintf(
+                stderr,
+                "orchard [%s] seed=%llu%s d=%.1f light=%.1f: %s distance %.4f (truth "
+                "%.4f) height %.3f (%.3f) width %.3f (%.3f) clipped %u conf %.2f | "
+                "canopy=off: %s height %.3f width %.3f\n",
+                kLayouts[li].name, (unsigned long long)a.c.seed, a.held_out ? "h" : "", d, l,
+                a.present   ? "tree"
+                : a.in_view ? "NO TREE"
+                            : "none in view",
+                a.distance, a.t_distance, a.height, a.t_height, a.width, a.t_width, a.clipped,
+                a.confidence, b.present ? "tree" : "NO TREE", b.height, b.width);
+            const bool bad = (a.in_view && !a.present) || std::abs(ed) > 0.05 ||
+                             (!height_clipped(a.clipped) && std::abs(eh) > 0.10) ||
+                             (!width_clipped(a.clipped) && std::abs(ew) > 0.10);
+            if (bad && g && !o.masks.empty() && saved_masks < kMaxSavedMasks) {
+              const GstTreeStereoCanopyMeta *cm = gst_buffer_get_tree_stereo_canopy_meta(buf[0]);
+              const TruthRectifier rect(rig.calibration(), *g);
+              const MappedMask chain(cm ? cm->view : GstTreeStereoVegetationView{});
+              char path[512];
+              std::snprintf(path, sizeof path, "%s/orchard-l%d-seed%llu-d%.1f-light%.1f.png",
+                            o.masks.c_str(), li, (unsigned long long)a.c.seed, d, l);
+              save_overlay(buf[0], *g, chain.mat, rect(raw.canopy_mask), path);
+              std::fprintf(stderr, "  saved %s (red: chain canopy, blue: truth)\n", path);
+              saved_masks++;
+            }
+          };
+          bench::run_chain(bench::chain_description(base.c, 1, rig.path(), p, tail),
+                           {"tree", "off"}, on_frame, "bench-orchard");
+        }
+
+  std::printf("### Orchard: the tree in front (stereodepth canopy=tree)\n\n");
+  std::printf("scene orchard, %dx%d, distances %s m, lights %s, tuning seeds %s, held-out seeds "
+              "%s; row layouts: ",
+              o.size.width, o.size.height, o.distances.c_str(), o.lights.c_str(),
+              seeds_text(o.tuning).c_str(), seeds_text(o.held_out).c_str());
+  for (int li : layouts)
+    std::printf("%s%s", kLayouts[li].name, li == layouts.back() ? "" : "; ");
+  std::printf(". Element properties: %s. Baseline: the same frames through stereodepth "
+              "canopy=off (the colour silhouette).\n\n",
+              common_props(o).c_str());
+  std::printf("| seeds | row layout / canopy | frames | answered / tree in view | answered "
+              "without a tree | height \\|err\\| %% mean / worst | width \\|err\\| %% mean / worst "
+              "| distance \\|err\\| %% mean / worst | clipped height / width |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|\n");
+  const char *sets[] = {"tuning", "held-out", "all"};
+  for (int s = 0; s < 3; s++) {
+    const auto in_set = [&](const TreeFrame &f) { return s == 2 || f.held_out == (s == 1); };
+    for (int k = -1; k < int(layouts.size()); k++) {
+      const int li = k < 0 ? -1 : layouts[std::size_t(k)];
+      TreeErrors e;
+      for (const TreeFrame &f : tree)
+        if (in_set(f) && (li < 0 || f.layout == li))
+          e.add(f);
+      print_tree_row(sets[s], li < 0 ? "all layouts, canopy=tree" : kLayouts[li].name, e);
+    }
+    TreeErrors e;
+    for (const TreeFrame &f : off)
+      if (in_set(f))
+        e.add(f);
+    print_tree_row(sets[s], "all layouts, **canopy=off** (colour only)", e);
+  }
+
+  // The worst frames, to look at.
+  std::vector<const TreeFrame *> worst;
+  for (const TreeFrame &f : tree)
+    worst.push_back(&f);
+  const auto badness = [](const TreeFrame *f) {
+    if (!f->present)
+      return f->in_view ? 1e9 : 0.0;
+    double b = std::abs(f->distance - f->t_distance) / f->t_distance;
+    if (!height_clipped(f->clipped))
+      b = std::max(b, std::abs(f->height - f->t_height) / f->t_height);
+    if (!width_clipped(f->clipped))
+      b = std::max(b, std::abs(f->width - f->t_width) / f->t_width);
+    return b;
+  };
+  std::sort(worst.begin(), worst.end(),
+            [&](const TreeFrame *a, const TreeFrame *b) { return badness(a) > badness(b); });
+  std::printf("\nThe worst frames (canopy=tree; errors of clipped extents in brackets):\n\n");
+  std::printf("| row layout | seed | distance (m) | light | answered | height err %% | width "
+              "err %% | distance err %% | clipped |\n|---|---|---|---|---|---|---|---|---|\n");
+  for (std::size_t i = 0; i < std::min<std::size_t>(8, worst.size()); i++) {
+    const TreeFrame &f = *worst[i];
+    const auto err = [](double v, double t, bool clipped) {
+      char b[32];
+      std::snprintf(b, sizeof b, clipped ? "(%+.1f)" : "%+.1f", 100 * (v - t) / t);
+      return std::string(b);
+    };
+    std::printf("| %s | %llu | %.1f | %.1f | %s | %s | %s | %s | %u |\n", kLayouts[f.layout].name,
+                (unsigned long long)f.c.seed, f.c.distance_m, f.c.light,
+                f.present   ? "yes"
+                : f.in_view ? "**no**"
+                            : "no (none in view)",
+                f.present ? err(f.height, f.t_height, height_clipped(f.clipped)).c_str() : "-",
+                f.present ? err(f.width, f.t_width, width_clipped(f.clipped)).c_str() : "-",
+                f.present ? err(f.distance, f.t_distance, false).c_str() : "-", f.clipped);
+  }
+  std::printf("\n");
+}
+
+void hedgerow_sweep(const Options &o)
+{
+  const RigFile rig(o.size);
+  const ElementProps &p = o.props;
+  const std::string tail = "stereodepth canopy=row " + p.stereodepth +
+                           " ! treemetrics post-messages=false " + p.treemetrics +
+                           " ! appsink sync=false name=out";
+  std::vector<BandRecord> bands;
+  std::vector<HedgeFrame> frames;
+  int n_bands = 0;
+  for (double d : parse_list(o.hedge_distances))
+    for (const auto &[seed, held] : all_seeds(o))
+      for (double l : parse_list(o.hedge_lights)) {
+        BandRecord base;
+        base.c = SceneConfig(o.size, d, std::uint64_t(seed), l, SceneKind::Hedgerow);
+        base.held_out = held;
+        const SceneRenderer renderer(base.c.params());
+        const auto on_frame = [&](int frame, const std::vector<GstBuffer *> &buf) {
+          const GstTreeStereoGeometryMeta *g = gst_buffer_get_tree_stereo_geometry_meta(buf[0]);
+          const GstTreeStereoMetricsMeta *m = gst_buffer_get_tree_stereo_metrics_meta(buf[0]);
+          const GstTreeStereoCanopyMeta *cm = gst_buffer_get_tree_stereo_canopy_meta(buf[0]);
+          GroundTruth raw;
+          const GroundTruth tr = bench::rectified_truth(renderer, frame, g, &raw);
+          HedgeFrame hf{base.c, base.held_out, cv::countNonZero(raw.row_mask) > 0, false};
+          if (g && m && cm && m->metrics.tree_present) {
+            hf.present = true;
+            const TruthRectifier rect(rig.calibration(), *g);
+            const MappedMask chain(cm->view);
+            const cv::Mat truth_rows = rect(raw.row_mask);
+            const std::vector<BandRecord> r =
+                band_truth(base, m->metrics, chain.mat, truth_rows, tr, *g);
+            n_bands = std::max(n_bands, int(r.size()));
+            bool bad = false;
+            for (const BandRecord &b : r) {
+              std::fprintf(stderr,
+                           "hedgerow seed=%llu%s d=%.1f band %d: %s depth %.4f (truth %.4f, %zu "
+                           "pts) fill %.3f (truth %.3f)\n",
+                           (unsigned long long)b.c.seed, b.held_out ? "h" : "", d, b.band,
+                           b.present ? "" : "absent", b.depth, b.t_depth, b.t_points, b.fill,
+                           b.t_fill);
+              bad = bad ||
+                    (b.present && b.t_points > 0 &&
+                     std::abs(b.depth - b.t_depth) / b.t_depth > 0.04) ||
+                    (b.present && std::abs(b.fill - b.t_fill) > 0.2);
+            }
+            bands.insert(bands.end(), r.begin(), r.end());
+            if (bad && !o.masks.empty() && saved_masks < kMaxSavedMasks) {
+              char path[512];
+              std::snprintf(path, sizeof path, "%s/hedgerow-seed%llu-d%.1f.png", o.masks.c_str(),
+                            (unsigned long long)base.c.seed, d);
+              save_overlay(buf[0], *g, chain.mat, truth_rows, path);
+              std::fprintf(stderr, "  saved %s (red: chain canopy, blue: truth near row)\n", path);
+              saved_masks++;
+            }
+          } else {
+            std::fprintf(stderr, "hedgerow seed=%llu d=%.1f: NO CANOPY\n",
+                         (unsigned long long)base.c.seed, d);
+          }
+          frames.push_back(hf);
+        };
+        bench::run_chain(bench::chain_description(base.c, 1, rig.path(), p, tail), {"out"},
+                         on_frame, "bench-orchard");
+      }
+
+  std::printf("### Hedgerow: the near row per band (stereodepth canopy=row)\n\n");
+  std::printf("scene hedgerow, %dx%d, distances %s m, lights %s, tuning seeds %s, held-out seeds "
+              "%s. Element properties: %s. Truth over the chain's own band rows: fill = "
+              "band_fill() of the rectified truth near-row mask, near-face depth = p05 of Z of "
+              "the truth's visible near-row points in those rows. Targets: depth within 2 %%, "
+              "fill within 0.1.\n\n",
+              o.size.width, o.size.height, o.hedge_distances.c_str(), o.hedge_lights.c_str(),
+              seeds_text(o.tuning).c_str(), seeds_text(o.held_out).c_str(),
+              common_props(o).c_str());
+  std::printf("| seeds | band | frames answered / row in view | bands | near-face depth "
+              "\\|err\\| %% mean / worst | fill \\|err\\| mean / worst |\n");
+  std::printf("|---|---|---|---|---|---|\n");
+  const char *sets[] = {"tuning", "held-out", "all"};
+  for (int s = 0; s < 3; s++) {
+    int answered = 0, in_view = 0;
+    for (const HedgeFrame &f : frames)
+      if (s == 2 || f.held_out == (s == 1)) {
+        answered += f.present && f.in_view;
+        in_view += f.in_view;
+      }
+    for (int band = -1; band < n_bands; band++) {
+      BandErrors e;
+      for (const BandRecord &r : bands)
+        if ((s == 2 || r.held_out == (s == 1)) && (band < 0 || r.band == band))
+          e.add(r);
+      std::printf("| %s | %s | %d / %d | %d%s | %s | %s |\n", sets[s],
+                  band < 0 ? "all" : std::to_string(band + 1).c_str(), answered, in_view, e.bands,
+                  e.no_truth ? (" (" + std::to_string(e.no_truth) + " no truth depth)").c_str()
+                             : "",
+                  e.depth.cell().c_str(), e.fill.cell(1.0, 3).c_str());
+    }
+  }
+  std::printf("\n");
+}
+
+} // namespace
+
+int main(int argc, char **argv)
+{
+  bench::init_gstreamer(argc, argv);
+  Options o;
+  // exgsegment must keep every vegetation region: the 3D canopy decides which are the tree.
+  o.props.exgsegment = "keep=all";
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i], v = argv[i + 1];
+    if (a == "--only")
+      o.only = v;
+    else if (a == "--size" && !parse_sizes(v).empty())
+      o.size = parse_sizes(v)[0];
+    else if (a == "--tuning-seeds")
+      o.tuning = parse_list(v);
+    else if (a == "--held-out-seeds")
+      o.held_out = parse_list(v);
+    else if (a == "--distances")
+      o.distances = v;
+    else if (a == "--lights")
+      o.lights = v;
+    else if (a == "--hedgerow-distances")
+      o.hedge_distances = v;
+    else if (a == "--hedgerow-lights")
+      o.hedge_lights = v;
+    else if (a == "--layouts")
+      o.layouts = parse_list(v);
+    else if (a == "--masks")
+      o.masks = v;
+    else if (!bench::element_option(a, v, o.props) || a == "--treetestsrc") {
+      // (--treetestsrc: the scene is the sweep's; free properties would not reach the truth)
+      std::fprintf(stderr, "bench-orchard: unknown option %s\n", a.c_str());
+      return 2;
+    }
+  }
+  if (!o.masks.empty())
+    g_mkdir_with_parents(o.masks.c_str(), 0755);
+  std::printf("Command:");
+  for (int i = 0; i < argc; i++)
+    std::printf(" %s", argv[i]);
+  std::printf("\n\n");
+  if (o.only.empty() || o.only == "orchard")
+    orchard_sweep(o);
+  if (o.only.empty() || o.only == "hedgerow")
+    hedgerow_sweep(o);
+  return 0;
+}
