@@ -373,8 +373,7 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
   p.grid.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
   const gint64 t0 = g_get_monotonic_time();
   CanopyDepth c = canopy_depth(treestereo::gst::view_mat(mat, LEFT, 2),
-                               treestereo::gst::view_mat(mat, RIGHT, 2), sil.get().mask, seeds, g,
-                               p);
+                               treestereo::gst::view_mat(mat, RIGHT, 2), sil.get(), seeds, g, p);
   for (std::size_t i = c.n_seeds; i < c.depth.points.size(); i++) {
     const StereoMatch &m = c.matches[i];
     c.depth.points[i].match_index =

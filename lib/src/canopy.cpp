@@ -59,14 +59,27 @@ void require(bool ok, const char *field, const char *range)
 }
 
 constexpr double kDeg = CV_PI / 180.0;
+// Views of at least this many pixels (1296x972 and up) split mixed regions on a grid reduced by
+// 2: one decision per 2x2 pixels, about a tenth of a 7x7 patch's reach at that size.
+constexpr int kSplitHalfSizeMinPx = 1000000;
+// The seam test's band: this many sample spacings either side of the border.
+constexpr double kSeamBandSpacings = 0.75;
+// A region of the colour mask with only canopy points needs this many of them to be canopy.
+constexpr int kMinRegionPoints = 3;
 // A piece of a split region smaller than this share of the canopy is a crumb.
 constexpr double kMinPieceShare = 0.005;
 // Mask value of a pixel not yet decided.
 constexpr uchar kUnknown = 128;
+// RANSAC draws for the ground plane (from the points below the camera).
+constexpr int kGroundIterations = 250;
+// A fitted ground's inliers spread this far in depth and across (10th to 90th percentile).
+constexpr double kGroundSpreadMm = 1000.0;
 // A fitted ground lies at least this far below the camera.
 constexpr double kMinCameraHeightMm = 150.0;
 // The seam test: the nearer surface's patch must correlate at least this well to win.
 constexpr double kSeamMinScore = 0.6;
+// A score the centred window needs for the shifted windows to be skipped.
+constexpr double kSeamClearScore = 0.85;
 
 // Image-area weights: each point stands for its share of the cell (cell x cell px) it falls in,
 // so that SIFT matches crowding on contrasted leaves do not outweigh an even grid.
@@ -130,6 +143,26 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
     state ^= state << 17;
     return state;
   };
+  // The ground is broad: its inliers spread at least kGroundSpreadMm in depth and across (the
+  // lowest slice of a canopy is a plane with enough points too, but a small one).
+  std::vector<double> zs, xs;
+  auto broad = [&](const cv::Vec3d &nn, double d) {
+    zs.clear();
+    xs.clear();
+    for (const cv::Point3d &q : X)
+      if (std::abs(nn.dot(cv::Vec3d(q.x, q.y, q.z)) + d) <= tol) {
+        zs.push_back(q.z);
+        xs.push_back(q.x);
+      }
+    auto spread = [](std::vector<double> &v) {
+      const std::size_t lo = v.size() / 10, hi = v.size() - 1 - v.size() / 10;
+      std::nth_element(v.begin(), v.begin() + long(lo), v.end());
+      const double a = v[lo];
+      std::nth_element(v.begin(), v.begin() + long(hi), v.end());
+      return v[hi] - a;
+    };
+    return zs.size() >= 3 && spread(zs) >= kGroundSpreadMm && spread(xs) >= kGroundSpreadMm;
+  };
   std::size_t best_inliers = 0;
   cv::Vec3d best_n;
   double best_d = 0;
@@ -142,7 +175,7 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
       low.push_back(i);
   if (low.size() < 3)
     return best;
-  for (int it = 0; it < 500; ++it) {
+  for (int it = 0; it < kGroundIterations; ++it) {
     const cv::Point3d &a = X[low[next() % low.size()]], &b = X[low[next() % low.size()]],
                       &c = X[low[next() % low.size()]];
     cv::Vec3d nn = cv::Vec3d(b - a).cross(cv::Vec3d(c - a));
@@ -165,7 +198,7 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
       else if (h < -3 * tol)
         ++under;
     }
-    if (in > best_inliers && under * 50 <= n) {
+    if (in > best_inliers && under * 50 <= n && broad(nn, d)) {
       best_inliers = in;
       best_n = nn;
       best_d = d;
@@ -226,7 +259,7 @@ void validate(const CanopyParams &p)
 
 CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoint> &points,
                            const StereoGeometry &g, const CanopyParams &p, const cv::Mat &left,
-                           const cv::Mat &right, ChannelOrder order)
+                           const cv::Mat &right, ChannelOrder order, const Silhouette *colour)
 {
   validate(p);
   if (!g.valid())
@@ -402,6 +435,12 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       // The tree in front: the run holding the optical axis (x = 0 at the row's depth), or the
       // one nearest to it.
       front = run_of(0.0);
+      // Where the tree ends along the row: halfway across the gaps beside it.
+      const std::size_t f = std::size_t(front);
+      if (f > 0)
+        r.cut_lo_mm = xmin + 0.5 * (runs[f - 1][1] + 1 + runs[f][0]) * bin;
+      if (f + 1 < runs.size())
+        r.cut_hi_mm = xmin + 0.5 * (runs[f][1] + 1 + runs[f + 1][0]) * bin;
     }
     r.left_mm = std::numeric_limits<double>::infinity();
     r.right_mm = -r.left_mm;
@@ -420,9 +459,14 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     return r;
   }
 
-  // 4. The mask, region by region of the vegetation mask.
-  cv::Mat labels;
-  const int n_regions = cv::connectedComponents(vegetation, labels, 8, CV_32S);
+  // 4. The mask, region by region of the vegetation mask (within the colour silhouette's box).
+  const cv::Rect vbox = colour && colour->present
+                            ? ((colour->bbox + cv::Size(2, 2)) - cv::Point(1, 1)) &
+                                  cv::Rect(cv::Point(0, 0), size)
+                            : cv::Rect(cv::Point(0, 0), size);
+  cv::Mat labels(size, CV_32S, cv::Scalar(0)), region_stats, region_centroids;
+  const int n_regions = cv::connectedComponentsWithStats(vegetation(vbox), labels(vbox),
+                                                         region_stats, region_centroids, 8, CV_32S);
   std::vector<int> n_in(std::size_t(n_regions), 0), n_out(std::size_t(n_regions), 0);
   for (int i : use) {
     const cv::Point px(int(std::lround(points[std::size_t(i)].px.x)),
@@ -436,68 +480,88 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
   // 0: not canopy, 1: the whole region, 2: split by the samples.
   std::vector<uchar> kind(std::size_t(n_regions), 0);
   cv::Rect mixed_box;
-  for (int l = 1; l < n_regions; ++l)
-    kind[std::size_t(l)] = n_in[std::size_t(l)] == 0 ? 0 : (n_out[std::size_t(l)] == 0 ? 1 : 2);
+  bool whole = true; // every region is canopy whole: the canopy is the colour silhouette
+  for (int l = 1; l < n_regions; ++l) {
+    // A region with nothing but a point or two of the canopy is not taken on their word: a
+    // patch of grass beside the crown holds the odd point of a leaf's edge.
+    const int in = n_in[std::size_t(l)], out_ = n_out[std::size_t(l)];
+    kind[std::size_t(l)] = in == 0 ? 0 : out_ > 0 ? 2 : in >= kMinRegionPoints ? 1 : 0;
+    whole = whole && kind[std::size_t(l)] == 1;
+    if (kind[std::size_t(l)] == 2)
+      mixed_box |= cv::Rect(region_stats.at<int>(l, cv::CC_STAT_LEFT) + vbox.x,
+                            region_stats.at<int>(l, cv::CC_STAT_TOP) + vbox.y,
+                            region_stats.at<int>(l, cv::CC_STAT_WIDTH),
+                            region_stats.at<int>(l, cv::CC_STAT_HEIGHT));
+  }
+  if (whole && colour && colour->present) {
+    const cv::Mat own = vegetation.clone();
+    r.silhouette = *colour;
+    r.silhouette.mask = own;
+    r.present = true;
+    return r;
+  }
   cv::Mat &mask = r.silhouette.mask;
-  for (int y = 0; y < size.height; ++y) {
+  for (int y = vbox.y; y < vbox.br().y; ++y) {
     const int *lab = labels.ptr<int>(y);
     uchar *m = mask.ptr<uchar>(y);
-    for (int x = 0; x < size.width; ++x) {
-      const uchar k = kind[std::size_t(lab[x])];
-      if (k == 1)
+    for (int x = vbox.x; x < vbox.br().x; ++x)
+      if (kind[std::size_t(lab[x])] == 1)
         m[x] = 255;
-      else if (k == 2) {
-        mixed_box |= cv::Rect(x, y, 1, 1);
-      }
-    }
   }
   if (!mixed_box.empty()) {
-    // Each pixel of a mixed region takes the class of the nearest sample: two distance
+    // The split runs on a grid reduced by f (2 for a large region: a decision every other pixel
+    // in x and y, which the 7x7 patches of the seam test do not resolve finer anyway), and its
+    // result is brought back to full size inside the colour mask.
+    const cv::Rect box = mixed_box;
+    const int f = size.area() >= kSplitHalfSizeMinPx ? 2 : 1;
+    const cv::Size ss((box.width + f - 1) / f, (box.height + f - 1) / f);
+    auto full = [&](int xs, int ys) { return cv::Point(box.x + xs * f, box.y + ys * f); };
+    cv::Mat split(ss, CV_8U, cv::Scalar(0)); // 255 canopy, kUnknown, 0 not; only in mixed regions
+    cv::Mat mixed(ss, CV_8U, cv::Scalar(0));
+    for (int y = 0; y < ss.height; ++y)
+      for (int x = 0; x < ss.width; ++x) {
+        const cv::Point q = full(x, y);
+        mixed.at<uchar>(y, x) = kind[std::size_t(labels.at<int>(std::min(q.y, size.height - 1),
+                                                                std::min(q.x, size.width - 1)))] == 2
+                                    ? 255
+                                    : 0;
+      }
+    // Each cell of a mixed region takes the class of the nearest sample: two distance
     // transforms, one to the canopy's samples and one to the others', with the sample each
     // distance comes from.
-    const cv::Rect box = mixed_box;
-    cv::Mat free_in(box.size(), CV_8U, cv::Scalar(255)), free_out(box.size(), CV_8U, cv::Scalar(255));
-    std::vector<cv::Point> at;
-    std::vector<float> disp;
-    std::vector<uchar> is_in;
+    cv::Mat free_in(ss, CV_8U, cv::Scalar(255)), free_out(ss, CV_8U, cv::Scalar(255));
+    auto cell_of = [&](int i, cv::Point &c) {
+      c = cv::Point((int(std::lround(points[std::size_t(i)].px.x)) - box.x) / f,
+                    (int(std::lround(points[std::size_t(i)].px.y)) - box.y) / f);
+      return cv::Rect(cv::Point(0, 0), ss).contains(c);
+    };
     for (int i : use) {
       const PointClass c = r.classes[std::size_t(i)];
-      if (c == PointClass::Unknown)
-        continue;
-      const cv::Point px(int(std::lround(points[std::size_t(i)].px.x)) - box.x,
-                         int(std::lround(points[std::size_t(i)].px.y)) - box.y);
-      if (!cv::Rect(cv::Point(0, 0), box.size()).contains(px))
-        continue;
-      (c == PointClass::Canopy ? free_in : free_out).at<uchar>(px) = 0;
+      cv::Point q;
+      if (c != PointClass::Unknown && cell_of(i, q))
+        (c == PointClass::Canopy ? free_in : free_out).at<uchar>(q) = 0;
     }
     cv::Mat d_in, d_out, l_in, l_out;
     cv::distanceTransform(free_in, d_in, l_in, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
     cv::distanceTransform(free_out, d_out, l_out, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
-    // The disparity of each label's sample (for the seam test).
-    std::vector<float> disp_in, disp_out;
-    if (seam) {
-      double lmax_in = 0, lmax_out = 0;
-      cv::minMaxLoc(l_in, nullptr, &lmax_in);
-      cv::minMaxLoc(l_out, nullptr, &lmax_out);
-      disp_in.assign(std::size_t(lmax_in) + 1, -1.0f);
-      disp_out.assign(std::size_t(lmax_out) + 1, -1.0f);
-      for (int i : use) {
-        const PointClass c = r.classes[std::size_t(i)];
-        if (c == PointClass::Unknown)
-          continue;
-        const cv::Point px(int(std::lround(points[std::size_t(i)].px.x)) - box.x,
-                           int(std::lround(points[std::size_t(i)].px.y)) - box.y);
-        if (!cv::Rect(cv::Point(0, 0), box.size()).contains(px))
-          continue;
-        const float d = float(g.fx * g.baseline_mm / points[std::size_t(i)].p.z + g.doffs());
-        if (c == PointClass::Canopy)
-          disp_in[std::size_t(l_in.at<int>(px))] = d;
-        else
-          disp_out[std::size_t(l_out.at<int>(px))] = d;
-      }
+    // The disparity of each label's sample (the seam test, and where the pixel lies along the
+    // row).
+    double lmax_in = 0, lmax_out = 0;
+    cv::minMaxLoc(l_in, nullptr, &lmax_in);
+    cv::minMaxLoc(l_out, nullptr, &lmax_out);
+    std::vector<float> disp_in(std::size_t(lmax_in) + 1, -1.0f), disp_out(std::size_t(lmax_out) + 1, -1.0f);
+    for (int i : use) {
+      const PointClass c = r.classes[std::size_t(i)];
+      cv::Point q;
+      if (c == PointClass::Unknown || !cell_of(i, q))
+        continue;
+      const float d = float(g.fx * g.baseline_mm / points[std::size_t(i)].p.z + g.doffs());
+      if (c == PointClass::Canopy)
+        disp_in[std::size_t(l_in.at<int>(q))] = d;
+      else
+        disp_out[std::size_t(l_out.at<int>(q))] = d;
     }
-    // The seam: pixels whose nearest samples of both kinds are about equally near (within
-    // the local sample spacing) are tested by photo-consistency.
+    const bool cut = std::isfinite(r.cut_lo_mm) || std::isfinite(r.cut_hi_mm);
     cv::Mat L, R;
     int rx0 = 0;
     const int h = p.seam_half_window;
@@ -514,132 +578,183 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       R = to_gray8(right(cv::Rect(rx0, box.y, rx1 - rx0, box.height)), order);
     }
     detail::Patch patch;
-    // Best ZNCC of the pixel at (x, y) (box coordinates) with the right view at disparity d
-    // (whole pixels within +-2 of it), over shiftable windows: the patch centred on the pixel
-    // and the two with the pixel at their top or bottom edge, so that a pixel below or above a
-    // depth edge is judged by a window on its own side. (Windows shifted sideways would give
-    // the background beside a near surface's left edge, which the right camera does not see,
-    // the near surface's match.)
-    auto best_score = [&](int x, int y, float d) {
-      double best = -2;
+    // Best ZNCC of the pixel at (x, y) (box coordinates) with the right view at disparities
+    // d_in and d_out (whole pixels within +-2 of each), over shiftable windows: the patch
+    // centred on the pixel and the two with the pixel at their top or bottom edge, so that a
+    // pixel below or above a depth edge is judged by a window on its own side. (Windows shifted
+    // sideways would give the background beside a near surface's left edge, which the right
+    // camera does not see, the near surface's match.) Each window's patch is built once; the
+    // shifted ones are only tried when the centred one leaves the nearer hypothesis short of a
+    // clear match.
+    auto seam_scores = [&](int x, int y, float d_in, float d_out, double &s_in, double &s_out) {
+      s_in = s_out = -2;
       static const int shifts[3][2] = {{0, 0}, {0, -1}, {0, 1}};
+      const bool in_near = d_in > d_out;
       for (const auto &sh : shifts) {
         const int px = x + sh[0] * h, py = y + sh[1] * h;
         if (px - h < 0 || px + h >= L.cols || py - h < 0 || py + h >= L.rows ||
             !detail::centred_patch(L, px, py, h, patch))
           continue;
-        const int xr_c = int(std::lround(px + box.x - d)) - rx0;
-        for (int dx = -2; dx <= 2; ++dx) {
-          const int xr = xr_c + dx;
-          if (xr - h < 0 || xr + h >= R.cols)
-            continue;
-          best = std::max(best, detail::zncc(patch, R, xr, py));
+        for (int k = 0; k < 2; ++k) {
+          double &best = k == 0 ? s_in : s_out;
+          const int xr_c = int(std::lround(px + box.x - (k == 0 ? d_in : d_out))) - rx0;
+          for (int dx = -2; dx <= 2; ++dx) {
+            const int xr = xr_c + dx;
+            if (xr - h >= 0 && xr + h < R.cols)
+              best = std::max(best, detail::zncc(patch, R, xr, py));
+          }
         }
+        if ((in_near ? s_in : s_out) >= kSeamClearScore)
+          break;
       }
-      return best;
     };
-    // How far a canopy sample speaks for its surroundings: 1.5 sample spacings.
+    // How far a canopy sample speaks for its surroundings: 1.5 sample spacings (full-size px).
     const double spacing = p.sample_spacing_px > 0
                                ? p.sample_spacing_px
                                : std::sqrt(double(cv::countNonZero(vegetation)) / double(use.size()));
     const float reach = float(std::max(4.0, 1.5 * spacing));
-    for (int y = 0; y < box.height; ++y) {
-      const int *lab = labels.ptr<int>(y + box.y);
+    for (int y = 0; y < ss.height; ++y) {
       const float *di = d_in.ptr<float>(y), *dout = d_out.ptr<float>(y);
-      const int *li = l_in.ptr<int>(y), *lo = l_out.ptr<int>(y);
-      uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
-      for (int x = 0; x < box.width; ++x) {
-        if (kind[std::size_t(lab[x + box.x])] != 2)
+      const int *li = l_in.ptr<int>(y);
+      const uchar *mx = mixed.ptr<uchar>(y);
+      uchar *m = split.ptr<uchar>(y);
+      for (int x = 0; x < ss.width; ++x) {
+        if (!mx[x])
           continue;
-        if (di[x] > reach) {
+        const float din = di[x] * f, dot = dout[x] * f; // full-size px
+        if (din > reach) {
           // Far from every canopy sample: another class's near it, or nobody's (a surface
           // without texture, such as mown grass, or a dark gap); decided below.
-          m[x] = dout[x] > reach ? kUnknown : 0;
+          m[x] = dot > reach ? kUnknown : 0;
           continue;
         }
-        bool in = di[x] <= dout[x];
-        if (seam && std::abs(di[x] - dout[x]) < std::max(4.0f, 0.5f * (di[x] + dout[x]))) {
-          const float dv_in = disp_in[std::size_t(li[x])], dv_out = disp_out[std::size_t(lo[x])];
-          if (dv_in > 0 && dv_out > 0 && std::abs(dv_in - dv_out) > 3.0f) {
-            // A nearer surface is never hidden by a farther one: when the nearer hypothesis
-            // finds no match, the pixel belongs to the farther one (seen by the left camera
-            // only, beside the nearer surface's left edge) or is not known; the farther wins.
-            const double s_in = best_score(x, y, dv_in), s_out = best_score(x, y, dv_out);
-            const bool in_near = dv_in > dv_out;
-            const double s_near = in_near ? s_in : s_out, s_far = in_near ? s_out : s_in;
-            const bool near_wins = s_near >= kSeamMinScore && s_near >= s_far;
-            in = near_wins == in_near;
-            ++r.n_seam_pixels;
-          }
+        bool in = din <= dot;
+        const float dv_in = disp_in[std::size_t(li[x])];
+        if (in && cut && dv_in > 0) {
+          // Along the row at the depth of the nearest canopy sample: beyond the gap to a
+          // neighbour, the pixel is the neighbour's.
+          const double X = (full(x, y).x - g.cx[0]) * g.baseline_mm / (dv_in - g.doffs());
+          if (X < r.cut_lo_mm || X > r.cut_hi_mm)
+            continue;
         }
         if (in)
           m[x] = 255;
       }
     }
-    // Pixels no sample reaches are canopy where the canopy encloses them (a hole without
-    // texture in the crown), and not where they reach anything else (grass under the crown).
+    // Cells no sample reaches are canopy where the canopy encloses them (a hole without texture
+    // in the crown), and not where they reach anything else (grass under the crown).
     {
       cv::Mat unknown, ul;
-      cv::compare(mask(box), kUnknown, unknown, cv::CMP_EQ);
+      cv::compare(split, kUnknown, unknown, cv::CMP_EQ);
       const int nu = cv::connectedComponents(unknown, ul, 8, CV_32S);
       std::vector<uchar> open(std::size_t(nu), 0);
-      for (int y = 0; y < box.height; ++y) {
+      static const int dx[4] = {1, -1, 0, 0}, dy[4] = {0, 0, 1, -1};
+      for (int y = 0; y < ss.height; ++y) {
         const int *u = ul.ptr<int>(y);
-        const uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
-        for (int x = 0; x < box.width; ++x) {
-          if (!u[x])
+        for (int x = 0; x < ss.width; ++x) {
+          if (!u[x] || open[std::size_t(u[x])])
             continue;
-          // Open: on the box's border, or beside a pixel that is neither canopy nor unknown.
-          bool o = x == 0 || y == 0 || x == box.width - 1 || y == box.height - 1;
+          // Open: on the box's border, or beside a cell that is neither canopy nor unknown.
+          bool o = x == 0 || y == 0 || x == ss.width - 1 || y == ss.height - 1;
           for (int k = 0; k < 4 && !o; ++k) {
-            static const int dx[4] = {1, -1, 0, 0}, dy[4] = {0, 0, 1, -1};
-            const uchar v = mask.at<uchar>(y + box.y + dy[k], x + box.x + dx[k]);
+            const uchar v = split.at<uchar>(y + dy[k], x + dx[k]);
             o = v != 255 && v != kUnknown;
           }
           if (o)
             open[std::size_t(u[x])] = 1;
-          (void)m;
         }
       }
-      for (int y = 0; y < box.height; ++y) {
+      for (int y = 0; y < ss.height; ++y) {
         const int *u = ul.ptr<int>(y);
-        uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
-        for (int x = 0; x < box.width; ++x)
+        uchar *m = split.ptr<uchar>(y);
+        for (int x = 0; x < ss.width; ++x)
           if (u[x])
             m[x] = open[std::size_t(u[x])] ? 0 : 255;
       }
     }
-    // Slivers the split leaves along thin structures (a trunk's edge mixed with the grass
-    // behind it) are no canopy: the split part is opened. Regions that are canopy whole keep
-    // their colour edge untouched.
-    {
-      cv::Mat split(box.size(), CV_8U, cv::Scalar(0));
-      for (int y = 0; y < box.height; ++y) {
-        const int *lab = labels.ptr<int>(y + box.y);
-        const uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
-        uchar *o = split.ptr<uchar>(y);
-        for (int x = 0; x < box.width; ++x)
-          o[x] = kind[std::size_t(lab[x + box.x])] == 2 ? m[x] : 0;
+    // The seam: cells within `band` of the border between the canopy and the rest of its
+    // region are tested by photo-consistency, the nearest canopy sample's disparity against the
+    // nearest other sample's (when there is one within reach and it differs): the nearest
+    // sample is only as right as the samples are dense, and grass without texture has few.
+    if (seam) {
+      const cv::Mat canopy_cells = split == 255, other_cells = mixed & (split != 255);
+      cv::Mat d_to_other, d_to_canopy;
+      cv::distanceTransform(~other_cells, d_to_other, cv::DIST_L2, 3);
+      cv::distanceTransform(~canopy_cells, d_to_canopy, cv::DIST_L2, 3);
+      const float band = float(std::max(2.0, kSeamBandSpacings * spacing / f));
+      for (int y = 0; y < ss.height; ++y) {
+        const float *di = d_in.ptr<float>(y);
+        const float *to_other = d_to_other.ptr<float>(y), *to_canopy = d_to_canopy.ptr<float>(y);
+        const int *li = l_in.ptr<int>(y), *lo = l_out.ptr<int>(y);
+        const uchar *mx = mixed.ptr<uchar>(y);
+        uchar *m = split.ptr<uchar>(y);
+        for (int x = 0; x < ss.width; ++x) {
+          if (!mx[x] || (m[x] == 255 ? to_other[x] : to_canopy[x]) > band)
+            continue;
+          const float dv_in = disp_in[std::size_t(li[x])];
+          if (dv_in <= 0 || di[x] * f > reach)
+            continue;
+          if (cut) {
+            const double X = (full(x, y).x - g.cx[0]) * g.baseline_mm / (dv_in - g.doffs());
+            if (X < r.cut_lo_mm || X > r.cut_hi_mm)
+              continue;
+          }
+          // The other surfaces the pixel may show: the nearest other sample's (however far
+          // away), and the ground's at this pixel (grass varies in depth down the view).
+          float others[2] = {disp_out[std::size_t(lo[x])], -1.0f};
+          if (r.ground.found) {
+            const cv::Point q = full(x, y);
+            const cv::Vec3d ray((q.x - g.cx[0]) / g.fx, (q.y - g.cy) / g.fy, 1.0);
+            const double down = r.ground.normal.dot(ray);
+            if (down < 0)
+              others[1] = float(g.fx * g.baseline_mm * -down / r.ground.d + g.doffs());
+          }
+          // A nearer surface is never hidden by a farther one: when the nearer hypothesis finds
+          // no match, the pixel belongs to the farther one (seen by the left camera only, beside
+          // the nearer surface's left edge) or is not known; the farther wins, and so it does
+          // on a tie (a smooth patch matches anywhere).
+          double s_in = -2, s_far = -2;
+          bool canopy_nearer = true;
+          for (float dv_out : others) {
+            if (dv_out <= 0 || std::abs(dv_in - dv_out) <= 3.0f)
+              continue;
+            double a, b;
+            seam_scores(x * f, y * f, dv_in, dv_out, a, b);
+            s_in = std::max(s_in, a);
+            if (b > s_far) {
+              s_far = b;
+              canopy_nearer = dv_in > dv_out;
+            }
+          }
+          if (s_far <= -2) { // nothing else to weigh against: the canopy's own match decides
+            double a, b;
+            seam_scores(x * f, y * f, dv_in, dv_in, a, b);
+            s_in = a;
+          }
+          const bool in = canopy_nearer ? s_in >= kSeamMinScore && s_in > s_far
+                                        : !(s_far >= kSeamMinScore && s_far > s_in);
+          m[x] = in ? 255 : 0;
+          ++r.n_seam_pixels;
+        }
       }
-      cv::Mat opened;
-      cv::morphologyEx(split, opened, cv::MORPH_OPEN,
-                       cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
-      cv::Mat removed = split & ~opened;
-      mask(box).setTo(0, removed);
     }
+    // Slivers the split leaves along thin structures (a trunk's edge mixed with the grass behind
+    // it) are no canopy: the split part is opened (5 full-size px).
+    cv::morphologyEx(split, split, cv::MORPH_OPEN,
+                     cv::getStructuringElement(cv::MORPH_ELLIPSE, f == 1 ? cv::Size(5, 5)
+                                                                         : cv::Size(3, 3)));
     // Pieces of the canopy that hold none of its samples (islands the split left behind) go,
     // and so do crumbs (less than kMinPieceShare of the canopy pieces' area: a few pixels along
     // a trunk's edge where a trunk point fell).
     cv::Mat cl, stats, centroids;
-    const int nc = cv::connectedComponentsWithStats(mask(box), cl, stats, centroids, 8, CV_32S);
+    const int nc = cv::connectedComponentsWithStats(split, cl, stats, centroids, 8, CV_32S);
     std::vector<uchar> keep(std::size_t(nc), 0);
-    for (int i : use)
-      if (r.classes[std::size_t(i)] == PointClass::Canopy) {
-        const cv::Point px(int(std::lround(points[std::size_t(i)].px.x)) - box.x,
-                           int(std::lround(points[std::size_t(i)].px.y)) - box.y);
-        if (cv::Rect(cv::Point(0, 0), box.size()).contains(px))
-          keep[std::size_t(cl.at<int>(px))] = 1;
-      }
+    for (int i : use) {
+      cv::Point q;
+      if (r.classes[std::size_t(i)] == PointClass::Canopy && cell_of(i, q))
+        keep[std::size_t(cl.at<int>(q))] = 1;
+    }
+    keep[0] = 0; // the background, where a canopy sample the split turned down may lie
     double kept_area = 0;
     for (int k = 1; k < nc; ++k)
       if (keep[std::size_t(k)])
@@ -647,23 +762,32 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     for (int k = 1; k < nc; ++k)
       if (stats.at<int>(k, cv::CC_STAT_AREA) < kMinPieceShare * kept_area)
         keep[std::size_t(k)] = 0;
-    for (int y = 0; y < box.height; ++y) {
+    for (int y = 0; y < ss.height; ++y) {
       const int *c = cl.ptr<int>(y);
-      const int *lab = labels.ptr<int>(y + box.y);
+      uchar *m = split.ptr<uchar>(y);
+      for (int x = 0; x < ss.width; ++x)
+        m[x] = keep[std::size_t(c[x])] ? 255 : 0;
+    }
+    // Back to full size, inside the colour mask's mixed regions.
+    for (int y = 0; y < box.height; ++y) {
+      const int *lab = labels.ptr<int>(y + box.y) + box.x;
+      const uchar *sp = split.ptr<uchar>(y / f);
       uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
       for (int x = 0; x < box.width; ++x)
-        if (m[x] && kind[std::size_t(lab[x + box.x])] == 2 && !keep[std::size_t(c[x])])
-          m[x] = 0;
+        if (sp[x / f] && kind[std::size_t(lab[x])] == 2)
+          m[x] = 255;
     }
   }
   r.present = describe_silhouette(r.silhouette, cv::Rect(cv::Point(0, 0), size), 1.0);
   return r;
 }
 
-CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
+CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhouette &vegetation,
                          const std::vector<StereoMatch> &seeds, const StereoGeometry &g,
                          const CanopyDepthParams &p)
 {
+  if (vegetation.mask.empty())
+    throw std::runtime_error("canopy_depth: the vegetation silhouette has no mask");
   if (p.coarse_points < 1)
     throw std::runtime_error("canopy_depth: coarse_points must be at least 1");
   CanopyDepth out;
@@ -675,7 +799,7 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const cv::Ma
   coarse.edge_band = 0;
   DensifyStats coarse_stats;
   const std::vector<StereoMatch> grid0 =
-      densify_matches(left, right, vegetation, seeds, coarse, &coarse_stats);
+      densify_matches(left, right, vegetation.mask, seeds, coarse, &coarse_stats);
   out.coarse = grid0.size();
   DepthParams range = p.filter;
   range.outlier_k = 0;
@@ -702,7 +826,7 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const cv::Ma
   CanopyParams cp = p.canopy;
   if (cp.sample_spacing_px <= 0 && coarse_stats.step > 0)
     cp.sample_spacing_px = coarse_stats.step;
-  out.canopy = select_canopy(vegetation, pts, g, cp, left, right, p.grid.order);
+  out.canopy = select_canopy(vegetation.mask, pts, g, cp, left, right, p.grid.order, &vegetation);
 
   // 2. The canopy alone, densely: seeded by the matches on it.
   out.matches = seeds;
@@ -740,6 +864,7 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const cv::Ma
     const bool on_mask = out.canopy.present && x >= 0 && y >= 0 && x < mask.cols &&
                          y < mask.rows && mask.at<uchar>(y, x);
     if (!on_mask || q.z < out.canopy.near_mm || q.z > out.canopy.far_mm ||
+        q.x < out.canopy.cut_lo_mm || q.x > out.canopy.cut_hi_mm ||
         (i < out.n_seeds && out.canopy.classes[i] != PointClass::Canopy)) {
       q.valid = false;
       ++zone;

@@ -33,6 +33,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -103,6 +104,10 @@ struct CanopyResult {
   GroundPlane ground;
   int n_segments = 0;               // near-row segments along the row
   double left_mm = 0, right_mm = 0; // X extent of the selected canopy's points
+  // Mode Tree: where the tree ends along the row, halfway across the gap to each neighbour
+  // (X, mm; infinite where there is no neighbour). Canopy pixels and points beyond are not it.
+  double cut_lo_mm = -std::numeric_limits<double>::infinity();
+  double cut_hi_mm = std::numeric_limits<double>::infinity();
   std::vector<PointClass> classes;  // one per input point
   std::size_t n_canopy_points = 0;
   std::size_t n_seam_pixels = 0;    // pixels decided by the seam test
@@ -117,11 +122,14 @@ struct PixelPoint {
 // Decides the canopy. `vegetation`: the colour mask of the left view (CV_8U, non-zero = plant);
 // `points`: 3D points of the vegetation (any density; a grid is best); `left`, `right`: the
 // rectified views (8-bit grey or as `order` says), for the seam test (may be empty: no seam
-// test). Throws std::runtime_error on inconsistent input or parameters.
+// test). `colour`: the silhouette `vegetation` is the mask of, if at hand: its box bounds the
+// work, and when the canopy is all of it its figures are taken as they are. Throws
+// std::runtime_error on inconsistent input or parameters.
 CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoint> &points,
                            const StereoGeometry &geometry, const CanopyParams &params,
                            const cv::Mat &left = cv::Mat(), const cv::Mat &right = cv::Mat(),
-                           ChannelOrder order = ChannelOrder());
+                           ChannelOrder order = ChannelOrder(),
+                           const Silhouette *colour = nullptr);
 
 // ---- The canopy's depth: densification, the 3D canopy, densification of the canopy ----
 //
@@ -148,8 +156,9 @@ struct CanopyDepth {
 };
 
 // `left`, `right`: the rectified views (grey, or colour as params.grid.order says);
-// `vegetation`: the left view's colour mask. Throws std::runtime_error on bad input.
-CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
+// `vegetation`: the left view's colour silhouette (with its mask). Throws std::runtime_error on
+// bad input.
+CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhouette &vegetation,
                          const std::vector<StereoMatch> &seeds, const StereoGeometry &geometry,
                          const CanopyDepthParams &params);
 
