@@ -66,6 +66,9 @@ constexpr int kSplitHalfSizeMinPx = 1000000;
 constexpr double kSeamBandSpacings = 0.75;
 // A region of the colour mask with only canopy points needs this many of them to be canopy.
 constexpr int kMinRegionPoints = 3;
+// A region is shared with something else when at least this share of its points (and
+// kMinRegionPoints) are not the canopy's.
+constexpr double kMinOtherShare = 0.05;
 // A piece of a split region smaller than this share of the canopy is a crumb.
 constexpr double kMinPieceShare = 0.005;
 // Mask value of a pixel not yet decided.
@@ -483,9 +486,12 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
   bool whole = true; // every region is canopy whole: the canopy is the colour silhouette
   for (int l = 1; l < n_regions; ++l) {
     // A region with nothing but a point or two of the canopy is not taken on their word: a
-    // patch of grass beside the crown holds the odd point of a leaf's edge.
+    // patch of grass beside the crown holds the odd point of a leaf's edge. Likewise a few
+    // points of something else in a crown (the background seen through a hole, a stray
+    // match) do not make it a shared region.
     const int in = n_in[std::size_t(l)], out_ = n_out[std::size_t(l)];
-    kind[std::size_t(l)] = in == 0 ? 0 : out_ > 0 ? 2 : in >= kMinRegionPoints ? 1 : 0;
+    const bool shared = out_ >= std::max(kMinRegionPoints, int(kMinOtherShare * (in + out_)));
+    kind[std::size_t(l)] = in == 0 ? 0 : shared ? 2 : in >= kMinRegionPoints ? 1 : 0;
     whole = whole && kind[std::size_t(l)] == 1;
     if (kind[std::size_t(l)] == 2)
       mixed_box |= cv::Rect(region_stats.at<int>(l, cv::CC_STAT_LEFT) + vbox.x,
