@@ -75,6 +75,11 @@ constexpr double kMinPieceShare = 0.005;
 constexpr uchar kUnknown = 128;
 // RANSAC draws for the ground plane (from the points below the camera).
 constexpr int kGroundIterations = 250;
+// A ground point's inlier distance is at least this share of its depth.
+constexpr double kGroundDepthTolerance = 0.02;
+// A canopy needs at least this many points of the coarse pass (fewer: stray points in a zone
+// that holds nothing, which is no canopy).
+constexpr std::size_t kMinCanopyPoints = 20;
 // A fitted ground's inliers spread this far in depth and across (10th to 90th percentile).
 constexpr double kGroundSpreadMm = 1000.0;
 // A fitted ground lies at least this far below the camera.
@@ -138,7 +143,11 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
   if (n < 30)
     return best;
   const double cos_tilt = std::cos(p.ground_max_tilt_deg * kDeg);
-  const double tol = p.ground_tolerance_mm;
+  // Inlier distance: the tolerance, or kGroundDepthTolerance of the point's depth where stereo's
+  // depth error is larger than that (far grass, small views).
+  auto tol_at = [&](const cv::Point3d &q) {
+    return std::max(p.ground_tolerance_mm, kGroundDepthTolerance * q.z);
+  };
   std::uint64_t state = 0x9e3779b97f4a7c15ULL;
   auto next = [&state]() {
     state ^= state << 13;
@@ -153,7 +162,7 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
     zs.clear();
     xs.clear();
     for (const cv::Point3d &q : X)
-      if (std::abs(nn.dot(cv::Vec3d(q.x, q.y, q.z)) + d) <= tol) {
+      if (std::abs(nn.dot(cv::Vec3d(q.x, q.y, q.z)) + d) <= tol_at(q)) {
         zs.push_back(q.z);
         xs.push_back(q.x);
       }
@@ -196,9 +205,9 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
     std::size_t in = 0, under = 0;
     for (const cv::Point3d &q : X) {
       const double h = nn.dot(cv::Vec3d(q.x, q.y, q.z)) + d;
-      if (std::abs(h) <= tol)
+      if (std::abs(h) <= tol_at(q))
         ++in;
-      else if (h < -3 * tol)
+      else if (h < -3 * tol_at(q))
         ++under;
     }
     if (in > best_inliers && under * 50 <= n && broad(nn, d)) {
@@ -213,7 +222,7 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
   // principal axis).
   cv::Mat pts(0, 3, CV_64F);
   for (const cv::Point3d &q : X)
-    if (std::abs(best_n.dot(cv::Vec3d(q.x, q.y, q.z)) + best_d) <= tol)
+    if (std::abs(best_n.dot(cv::Vec3d(q.x, q.y, q.z)) + best_d) <= tol_at(q))
       pts.push_back(cv::Mat(cv::Matx13d(q.x, q.y, q.z)));
   cv::PCA pca(pts, cv::noArray(), cv::PCA::DATA_AS_ROW);
   cv::Vec3d nn(pca.eigenvectors.at<double>(2, 0), pca.eigenvectors.at<double>(2, 1),
@@ -457,7 +466,7 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       }
     }
   }
-  if (r.n_canopy_points == 0) {
+  if (r.n_canopy_points < kMinCanopyPoints) {
     r.left_mm = r.right_mm = 0;
     return r;
   }
