@@ -968,14 +968,15 @@ GST_START_TEST(test_orchard_canopy_off_row_and_empty_zone)
   fail_unless(row.canopy_w > 1.3 * tree.canopy_w, "row %d px, tree %d px", row.canopy_w,
               tree.canopy_w);
 
-  /* a spray zone between the rows: no canopy, and treemetrics says no tree */
-  OrchardRun empty = run_orchard("zone-near=3000 zone-far=4000");
+  /* a spray zone where nothing stands (the next row is at 5.5 m): no canopy, and treemetrics
+   * says no tree */
+  OrchardRun empty = run_orchard("zone-near=20000 zone-far=25000");
   fail_unless(empty.error == nullptr && empty.canopy_meta);
   fail_if(empty.canopy_present);
   fail_unless(empty.message_canopy);
   fail_if(empty.message_fields.view.present);
-  fail_unless_equals_float(empty.message_fields.near_m, 3.0);
-  fail_unless_equals_float(empty.message_fields.far_m, 4.0);
+  fail_unless_equals_float(empty.message_fields.near_m, 20.0);
+  fail_unless_equals_float(empty.message_fields.far_m, 25.0);
   fail_if(empty.tree_present, "treemetrics found a tree where the zone holds none");
 }
 GST_END_TEST;
