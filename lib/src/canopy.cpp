@@ -64,10 +64,9 @@ constexpr double kDeg = CV_PI / 180.0;
 constexpr int kSplitHalfSizeMinPx = 1000000;
 // The seam test's band: this many sample spacings either side of the border.
 constexpr double kSeamBandSpacings = 0.75;
-// A region of the colour mask with only canopy points needs this many of them to be canopy.
-constexpr int kMinRegionPoints = 3;
-// A region is shared with something else when at least this share of its points (and
-// kMinRegionPoints) are not the canopy's.
+// A region is shared with something else when at least this share of its points, and this
+// many, are not the canopy's.
+constexpr int kMinOtherPoints = 3;
 constexpr double kMinOtherShare = 0.05;
 // A piece of a split region smaller than this share of the canopy is a crumb.
 constexpr double kMinPieceShare = 0.005;
@@ -77,9 +76,6 @@ constexpr uchar kUnknown = 128;
 constexpr int kGroundIterations = 250;
 // A ground point's inlier distance is at least this share of its depth.
 constexpr double kGroundDepthTolerance = 0.02;
-// A canopy needs at least this many points of the coarse pass (fewer: stray points in a zone
-// that holds nothing, which is no canopy).
-constexpr std::size_t kMinCanopyPoints = 20;
 // A fitted ground's inliers spread this far in depth and across (10th to 90th percentile).
 constexpr double kGroundSpreadMm = 1000.0;
 // A fitted ground lies at least this far below the camera.
@@ -466,7 +462,7 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       }
     }
   }
-  if (r.n_canopy_points < kMinCanopyPoints) {
+  if (r.n_canopy_points == 0) {
     r.left_mm = r.right_mm = 0;
     return r;
   }
@@ -494,13 +490,11 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
   cv::Rect mixed_box;
   bool whole = true; // every region is canopy whole: the canopy is the colour silhouette
   for (int l = 1; l < n_regions; ++l) {
-    // A region with nothing but a point or two of the canopy is not taken on their word: a
-    // patch of grass beside the crown holds the odd point of a leaf's edge. Likewise a few
-    // points of something else in a crown (the background seen through a hole, a stray
-    // match) do not make it a shared region.
+    // A few points of something else in a crown (the background seen through a hole, a stray
+    // match) do not make its region a shared one.
     const int in = n_in[std::size_t(l)], out_ = n_out[std::size_t(l)];
-    const bool shared = out_ >= std::max(kMinRegionPoints, int(kMinOtherShare * (in + out_)));
-    kind[std::size_t(l)] = in == 0 ? 0 : shared ? 2 : in >= kMinRegionPoints ? 1 : 0;
+    const bool shared = out_ >= std::max(kMinOtherPoints, int(kMinOtherShare * (in + out_)));
+    kind[std::size_t(l)] = in == 0 ? 0 : shared ? 2 : 1;
     whole = whole && kind[std::size_t(l)] == 1;
     if (kind[std::size_t(l)] == 2)
       mixed_box |= cv::Rect(region_stats.at<int>(l, cv::CC_STAT_LEFT) + vbox.x,
