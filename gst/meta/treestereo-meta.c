@@ -682,21 +682,20 @@ static const gchar *index_names[] = { "exg", "exg-exr", "exg-norm", "exg-exr-nor
 static const gchar *method_names[] = { "euclidean", "cosine-norm" };
 static const gchar *canopy_mode_names[] = { "colour", "tree", "row" };
 
-/* The name of enum value @v in @names (@n of them), or NULL. */
-static const gchar *
-name_of (const gchar ** names, guint n, guint v)
+const gchar *
+gst_tree_stereo_vegetation_index_to_string (GstTreeStereoVegetationIndex index)
 {
-  return v < n ? names[v] : NULL;
+  return ((guint) index < G_N_ELEMENTS (index_names)) ? index_names[index] : NULL;
 }
 
-/* The enum value named @s in @names into @out; FALSE (and @out untouched) when none is. */
-static gboolean
-value_of (const gchar ** names, guint n, const gchar * s, guint * out)
+gboolean
+gst_tree_stereo_vegetation_index_from_string (const gchar * s,
+    GstTreeStereoVegetationIndex * index)
 {
   guint i;
-  for (i = 0; s && i < n; i++) {
-    if (g_strcmp0 (s, names[i]) == 0) {
-      *out = i;
+  for (i = 0; s && i < G_N_ELEMENTS (index_names); i++) {
+    if (g_strcmp0 (s, index_names[i]) == 0) {
+      *index = (GstTreeStereoVegetationIndex) i;
       return TRUE;
     }
   }
@@ -704,52 +703,41 @@ value_of (const gchar ** names, guint n, const gchar * s, guint * out)
 }
 
 const gchar *
-gst_tree_stereo_vegetation_index_to_string (GstTreeStereoVegetationIndex index)
-{
-  return name_of (index_names, G_N_ELEMENTS (index_names), (guint) index);
-}
-
-gboolean
-gst_tree_stereo_vegetation_index_from_string (const gchar * s,
-    GstTreeStereoVegetationIndex * index)
-{
-  guint v;
-  if (!value_of (index_names, G_N_ELEMENTS (index_names), s, &v))
-    return FALSE;
-  *index = (GstTreeStereoVegetationIndex) v;
-  return TRUE;
-}
-
-const gchar *
 gst_tree_stereo_match_method_to_string (GstTreeStereoMatchMethod method)
 {
-  return name_of (method_names, G_N_ELEMENTS (method_names), (guint) method);
+  return ((guint) method < G_N_ELEMENTS (method_names)) ? method_names[method] : NULL;
 }
 
 gboolean
 gst_tree_stereo_match_method_from_string (const gchar * s, GstTreeStereoMatchMethod * method)
 {
-  guint v;
-  if (!value_of (method_names, G_N_ELEMENTS (method_names), s, &v))
-    return FALSE;
-  *method = (GstTreeStereoMatchMethod) v;
-  return TRUE;
+  guint i;
+  for (i = 0; s && i < G_N_ELEMENTS (method_names); i++) {
+    if (g_strcmp0 (s, method_names[i]) == 0) {
+      *method = (GstTreeStereoMatchMethod) i;
+      return TRUE;
+    }
+  }
+  return FALSE;
 }
 
 const gchar *
 gst_tree_stereo_canopy_mode_to_string (GstTreeStereoCanopyMode mode)
 {
-  return name_of (canopy_mode_names, G_N_ELEMENTS (canopy_mode_names), (guint) mode);
+  return ((guint) mode < G_N_ELEMENTS (canopy_mode_names)) ? canopy_mode_names[mode] : NULL;
 }
 
 gboolean
 gst_tree_stereo_canopy_mode_from_string (const gchar * s, GstTreeStereoCanopyMode * mode)
 {
-  guint v;
-  if (!value_of (canopy_mode_names, G_N_ELEMENTS (canopy_mode_names), s, &v))
-    return FALSE;
-  *mode = (GstTreeStereoCanopyMode) v;
-  return TRUE;
+  guint i;
+  for (i = 0; s && i < G_N_ELEMENTS (canopy_mode_names); i++) {
+    if (g_strcmp0 (s, canopy_mode_names[i]) == 0) {
+      *mode = (GstTreeStereoCanopyMode) i;
+      return TRUE;
+    }
+  }
+  return FALSE;
 }
 
 GType
