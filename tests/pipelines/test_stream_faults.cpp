@@ -468,11 +468,13 @@ GST_START_TEST(test_camera_stops_and_returns)
   Chain c;
   /* 200 ms of latency covers the jitter of two appsrc threads on a busy machine or a
    * sanitizer build (with 60 ms an ASan run once fell behind on the right and then dropped
-   * every other frame on skew: the element doing its job on a starved machine); a queue keeps
-   * the measuring from delaying the pairing */
+   * every other frame on skew: the element doing its job on a starved machine); an unbounded
+   * queue keeps the measuring (slower than 15 frames/s in a sanitizer build) from delaying the
+   * pairing: the 50 frames wait there, at about 0.5 MB each */
   chain_start(c, r.calibration(), size, size, "is-live=true min-latency=0",
               "latency=200000000",
-              "queue ! exgsegment ! siftmatch ! stereodepth ! treemetrics ! fakesink sync=false",
+              "queue max-size-buffers=0 max-size-bytes=0 max-size-time=0 ! exgsegment ! "
+              "siftmatch ! stereodepth ! treemetrics ! fakesink sync=false",
               fps);
   fail_unless(gst_element_get_state(c.pipeline, nullptr, nullptr, 10 * GST_SECOND) !=
               GST_STATE_CHANGE_FAILURE);
@@ -505,7 +507,7 @@ GST_START_TEST(test_camera_stops_and_returns)
   }
   gst_object_unref(clock);
   end_streams(c);
-  run_bus(c, log, 30);
+  run_bus(c, log, 120); /* the queue drains after the last frame */
   fail_unless(log.eos, "error: %s (%s)", log.error.c_str(), log.error_debug.c_str());
 
   const guint64 dropped = counter(c, "dropped"), paired = counter(c, "paired");
