@@ -356,7 +356,7 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     const auto runs = occupied_runs(hist, 0.002 * total,
                                     std::max(1, int(std::lround(p.layer_gap_mm / p.layer_bin_mm))));
     int chosen = -1;
-    double chosen_w = -1, best_w = -1;
+    double best_w = -1;
     int best = -1;
     for (std::size_t k = 0; k < runs.size(); ++k) {
       // A run longer than a row is cut at max_row_depth_mm behind its front.
@@ -368,12 +368,9 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
         best_w = sum;
         best = int(k);
       }
-      if (chosen < 0 && sum >= p.layer_min_share * total) {
+      if (chosen < 0 && sum >= p.layer_min_share * total)
         chosen = int(k);
-        chosen_w = sum;
-      }
     }
-    (void)chosen_w;
     if (chosen < 0)
       chosen = best;
     if (chosen < 0)
