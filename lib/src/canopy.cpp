@@ -449,15 +449,39 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     }
     r.left_mm = std::numeric_limits<double>::infinity();
     r.right_mm = -r.left_mm;
+    std::vector<std::vector<double>> seg_z(std::max<std::size_t>(runs.size(), 1));
+    r.segments.assign(seg_z.size(), RowSegment{});
+    for (auto &s : r.segments) {
+      s.lo_mm = std::numeric_limits<double>::infinity();
+      s.hi_mm = -s.lo_mm;
+    }
     for (int i : zone) {
-      const bool in = runs.empty() || p.mode == CanopyMode::Row || run_of(P(i).x) == front;
+      const int k = runs.empty() ? 0 : run_of(P(i).x);
+      const bool in = runs.empty() || p.mode == CanopyMode::Row || k == front;
       r.classes[std::size_t(i)] = in ? PointClass::Canopy : PointClass::Neighbour;
+      RowSegment &s = r.segments[std::size_t(k)];
+      s.lo_mm = std::min(s.lo_mm, P(i).x);
+      s.hi_mm = std::max(s.hi_mm, P(i).x);
+      ++s.n_points;
+      s.selected = in;
+      seg_z[std::size_t(k)].push_back(P(i).z);
       if (in) {
         ++r.n_canopy_points;
         r.left_mm = std::min(r.left_mm, P(i).x);
         r.right_mm = std::max(r.right_mm, P(i).x);
       }
     }
+    for (std::size_t k = 0; k < r.segments.size(); ++k) {
+      auto &z = seg_z[k];
+      if (z.empty())
+        continue;
+      const auto q = z.begin() + std::ptrdiff_t(0.05 * double(z.size() - 1));
+      std::nth_element(z.begin(), q, z.end());
+      r.segments[k].near_mm = *q;
+    }
+    r.segments.erase(std::remove_if(r.segments.begin(), r.segments.end(),
+                                    [](const RowSegment &s) { return s.n_points == 0; }),
+                     r.segments.end());
   }
   if (r.n_canopy_points == 0) {
     r.left_mm = r.right_mm = 0;

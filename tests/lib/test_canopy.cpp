@@ -275,6 +275,19 @@ TEST(Canopy, TwoCanopiesThirtyCentimetresApart)
   EXPECT_GT(iou(tree.silhouette.mask, truth), 0.98);
   EXPECT_NEAR(tree.left_mm, -100 - 330, 25);
   EXPECT_NEAR(tree.right_mm, -100 + 330, 25);
+  // The segments along the row, left to right; the middle one is the tree in front.
+  ASSERT_EQ(tree.segments.size(), 3u);
+  for (std::size_t k = 0; k < 3; ++k) {
+    EXPECT_EQ(tree.segments[k].selected, k == 1);
+    EXPECT_GT(tree.segments[k].n_points, 0u);
+    if (k > 0) {
+      EXPECT_GT(tree.segments[k].lo_mm - tree.segments[k - 1].hi_mm, 250);
+    }
+  }
+  EXPECT_NEAR(tree.segments[1].lo_mm, tree.left_mm, 1e-9);
+  EXPECT_NEAR(tree.segments[1].hi_mm, tree.right_mm, 1e-9);
+  EXPECT_NEAR(tree.segments[1].near_mm, 2200 - 330, 40);
+  EXPECT_NEAR(tree.segments[2].lo_mm, -100 + 330 + 300, 25);
   for (std::size_t i = 0; i < pts.size(); ++i) {
     const int obj = r.objects.at<int>(cv::Point(pts[i].px));
     if (obj == 1 || obj == 2) {
@@ -286,6 +299,10 @@ TEST(Canopy, TwoCanopiesThirtyCentimetresApart)
   const CanopyResult wall = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
   ASSERT_TRUE(wall.present);
   EXPECT_GT(iou(wall.silhouette.mask, row), 0.97);
+  ASSERT_EQ(wall.segments.size(), 3u);
+  for (const auto &seg : wall.segments) {
+    EXPECT_TRUE(seg.selected);
+  }
 }
 
 TEST(Canopy, NothingToDecide)

@@ -96,6 +96,15 @@ struct GroundPlane {
   double height_of(const cv::Point3d &p) const { return normal.dot(cv::Vec3d(p.x, p.y, p.z)) + d; }
 };
 
+// One stretch of the near row along x, separated from the next by an empty stretch of at least
+// min_gap_mm (mode Tree) or taken whole (mode Row: one per run all the same).
+struct RowSegment {
+  double lo_mm = 0, hi_mm = 0; // X extent of its points (rectified-left frame)
+  double near_mm = 0;          // the 5th percentile of its points' Z
+  std::size_t n_points = 0;
+  bool selected = false;       // part of the canopy this result reports
+};
+
 struct CanopyResult {
   bool present = false;
   Silhouette silhouette;            // the canopy's mask and figures, as segmentation gives them
@@ -103,6 +112,7 @@ struct CanopyResult {
   bool zone_from_data = true;       // false: the user's spray zone
   GroundPlane ground;
   int n_segments = 0;               // near-row segments along the row
+  std::vector<RowSegment> segments; // those segments, left to right
   double left_mm = 0, right_mm = 0; // X extent of the selected canopy's points
   // Mode Tree: where the tree ends along the row, halfway across the gap to each neighbour
   // (X, mm; infinite where there is no neighbour). Canopy pixels and points beyond are not it.
