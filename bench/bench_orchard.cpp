@@ -119,7 +119,7 @@ private:
 };
 
 // The left rectified view of a side-by-side frame with the chain's canopy outlined in red and
-// the truth's in blue, written to `path`.
+// the truth's in blue, where they disagree tinted in the same colours, written to `path`.
 void save_overlay(GstBuffer *buf, const GstTreeStereoGeometryMeta &g, const cv::Mat &chain,
                   const cv::Mat &truth, const std::string &path)
 {
@@ -131,6 +131,14 @@ void save_overlay(GstBuffer *buf, const GstTreeStereoGeometryMeta &g, const cv::
   cv::Mat bgr;
   cv::cvtColor(frame(cv::Rect(0, 0, w, h)), bgr, cv::COLOR_RGB2BGR);
   gst_buffer_unmap(buf, &map);
+  // Where they disagree, tinted: the chain's canopy alone red, the truth's alone blue.
+  if (!chain.empty() && !truth.empty()) {
+    const cv::Mat only_chain = chain & ~truth, only_truth = truth & ~chain;
+    cv::Mat tint = bgr.clone();
+    tint.setTo(cv::Scalar(0, 0, 255), only_chain);
+    tint.setTo(cv::Scalar(255, 64, 0), only_truth);
+    cv::addWeighted(bgr, 0.5, tint, 0.5, 0, bgr);
+  }
   for (const auto &[mask, colour] : {std::make_pair(truth, cv::Scalar(255, 64, 0)),
                                      std::make_pair(chain, cv::Scalar(0, 0, 255))}) {
     if (mask.empty())
@@ -510,8 +518,8 @@ void hedgerow_sweep(const Options &o)
                            b.t_depth_stereo, b.fill, b.t_fill);
               bad = bad ||
                     (b.present && b.t_points > 0 &&
-                     std::abs(b.depth - b.t_depth) / b.t_depth > 0.04) ||
-                    (b.present && std::abs(b.fill - b.t_fill) > 0.2);
+                     std::abs(b.depth - b.t_depth) / b.t_depth > 0.02) ||
+                    (b.present && std::abs(b.fill - b.t_fill) > 0.1);
             }
             bands.insert(bands.end(), r.begin(), r.end());
             if (bad && !o.masks.empty() && saved_masks < kMaxSavedMasks) {

@@ -63,7 +63,7 @@ constexpr double kDeg = CV_PI / 180.0;
 // 2: one decision per 2x2 pixels, about a tenth of a 7x7 patch's reach at that size.
 constexpr int kSplitHalfSizeMinPx = 1000000;
 // The seam test's band: this many sample spacings either side of the border.
-constexpr double kSeamBandSpacings = 0.75;
+constexpr double kSeamBandSpacings = 1.5;
 // A region is shared with something else when at least this share of its points, and this
 // many, are not the canopy's.
 constexpr int kMinOtherPoints = 3;
@@ -72,6 +72,9 @@ constexpr double kMinOtherShare = 0.05;
 constexpr double kMinPieceShare = 0.005;
 // Mask value of a pixel not yet decided.
 constexpr uchar kUnknown = 128;
+// A region with an area of at least one sample spacing squared farther than this many spacings
+// from every sample holds a surface the samples could not measure: it is split, not taken whole.
+constexpr double kUnreachedSpacings = 3.0;
 // RANSAC draws for the ground plane (from the points below the camera).
 constexpr int kGroundIterations = 250;
 // A ground point's inlier distance is at least this share of its depth.
@@ -506,6 +509,41 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     else if (other_class(r.classes[std::size_t(i)]))
       ++n_out[std::size_t(l)];
   }
+  // How far a sample speaks for its surroundings: 1.5 sample spacings (full-size px).
+  const double spacing = p.sample_spacing_px > 0
+                             ? p.sample_spacing_px
+                             : std::sqrt(double(cv::countNonZero(vegetation)) / double(use.size()));
+  const float reach = float(std::max(4.0, 1.5 * spacing));
+  // Each region's area far from every sample (full-size px): more than kUnreachedSpacings
+  // sample spacings from the nearest one, so that a whole patch of grid points failed to match
+  // there (a surface without texture, such as mown grass), not a sliver along an edge. The strip
+  // along the left border that the right camera does not see at the near row's depth has no
+  // samples either and does not count. Counted on a grid reduced by 2.
+  std::vector<double> unreached(std::size_t(n_regions), 0.0);
+  // The columns left of this the right camera does not see at the near row's depth.
+  const double one_view = r.near_mm > 0 ? g.fx * g.baseline_mm / r.near_mm + g.doffs() : 0.0;
+  {
+    const int f = 2;
+    const cv::Size ss((vbox.width + f - 1) / f, (vbox.height + f - 1) / f);
+    cv::Mat free_all(ss, CV_8U, cv::Scalar(255)), dist;
+    for (int i : use) {
+      if (r.classes[std::size_t(i)] == PointClass::Unknown)
+        continue;
+      const cv::Point q((int(std::lround(points[std::size_t(i)].px.x)) - vbox.x) / f,
+                        (int(std::lround(points[std::size_t(i)].px.y)) - vbox.y) / f);
+      if (cv::Rect(cv::Point(0, 0), ss).contains(q))
+        free_all.at<uchar>(q) = 0;
+    }
+    cv::distanceTransform(free_all, dist, cv::DIST_L2, 3);
+    const float far_px = float(kUnreachedSpacings * spacing);
+    for (int y = 0; y < ss.height; ++y) {
+      const float *d = dist.ptr<float>(y);
+      const int *lab = labels.ptr<int>(vbox.y + y * f) + vbox.x;
+      for (int x = 0; x < ss.width; ++x)
+        if (lab[x * f] && d[x] * f > far_px && vbox.x + x * f >= one_view)
+          unreached[std::size_t(lab[x * f])] += f * f;
+    }
+  }
   // 0: not canopy, 1: the whole region, 2: split by the samples.
   std::vector<uchar> kind(std::size_t(n_regions), 0);
   cv::Rect mixed_box;
@@ -514,7 +552,8 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     // A few points of something else in a crown (the background seen through a hole, a stray
     // match) do not make its region a shared one.
     const int in = n_in[std::size_t(l)], out_ = n_out[std::size_t(l)];
-    const bool shared = out_ >= std::max(kMinOtherPoints, int(kMinOtherShare * (in + out_)));
+    const bool shared = out_ >= std::max(kMinOtherPoints, int(kMinOtherShare * (in + out_))) ||
+                        unreached[std::size_t(l)] >= spacing * spacing;
     kind[std::size_t(l)] = in == 0 ? 0 : shared ? 2 : 1;
     whole = whole && kind[std::size_t(l)] == 1;
     if (kind[std::size_t(l)] == 2)
@@ -638,11 +677,6 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
           break;
       }
     };
-    // How far a canopy sample speaks for its surroundings: 1.5 sample spacings (full-size px).
-    const double spacing = p.sample_spacing_px > 0
-                               ? p.sample_spacing_px
-                               : std::sqrt(double(cv::countNonZero(vegetation)) / double(use.size()));
-    const float reach = float(std::max(4.0, 1.5 * spacing));
     for (int y = 0; y < ss.height; ++y) {
       const float *di = d_in.ptr<float>(y), *dout = d_out.ptr<float>(y);
       const int *li = l_in.ptr<int>(y);
@@ -652,10 +686,13 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
         if (!mx[x])
           continue;
         const float din = di[x] * f, dot = dout[x] * f; // full-size px
-        if (din > reach) {
+        // In the strip only the left camera sees, no sample can lie: the samples beside it
+        // speak for it across the strip.
+        const float rx = reach + std::max(0.0f, float(one_view - full(x, y).x));
+        if (din > rx) {
           // Far from every canopy sample: another class's near it, or nobody's (a surface
           // without texture, such as mown grass, or a dark gap); decided below.
-          m[x] = dot > reach ? kUnknown : 0;
+          m[x] = dot > rx ? kUnknown : 0;
           continue;
         }
         bool in = din <= dot;
@@ -722,7 +759,10 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
           if (!mx[x] || (m[x] == 255 ? to_other[x] : to_canopy[x]) > band)
             continue;
           const float dv_in = disp_in[std::size_t(li[x])];
-          if (dv_in <= 0 || di[x] * f > reach)
+          // Untestable: no nearby canopy sample, or the right view does not see the pixel at
+          // the canopy's disparity (the strip along the left border): the nearest sample
+          // decides.
+          if (dv_in <= 0 || di[x] * f > reach || full(x, y).x - dv_in - h - 2 < 0)
             continue;
           if (cut) {
             const double X = (full(x, y).x - g.cx[0]) * g.baseline_mm / (dv_in - g.doffs());

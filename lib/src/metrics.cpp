@@ -425,16 +425,19 @@ void fill_missing_band_depths(std::vector<Band> &bands, double canopy_near_m)
 
 std::vector<Band> compute_bands(const MetricsParams &p, const RowExtents &e,
                                 const std::vector<CanopyPoint> &pts, const Converter &c,
-                                const StereoGeometry &g, double canopy_near_m, const cv::Mat &mask)
+                                const StereoGeometry &g, double canopy_near_m, const cv::Mat &mask,
+                                const std::vector<double> &weights)
 {
   const double fy = g.fy > 0 ? g.fy : g.fx;
   const int n = p.n_bands;
   const double top = e.bbox.y - 0.5, step = double(e.bbox.height) / n;
   std::vector<Band> bands(static_cast<std::size_t>(n));
-  std::vector<std::vector<double>> band_z(static_cast<std::size_t>(n));
-  for (const CanopyPoint &pt : pts) {
-    const int i = std::clamp(int(std::floor((pt.v - top) / step)), 0, n - 1);
-    band_z[std::size_t(i)].push_back(pt.z_mm);
+  std::vector<std::vector<double>> band_z(static_cast<std::size_t>(n)), band_w(band_z.size());
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    const int i = std::clamp(int(std::floor((pts[k].v - top) / step)), 0, n - 1);
+    band_z[std::size_t(i)].push_back(pts[k].z_mm);
+    if (!weights.empty())
+      band_w[std::size_t(i)].push_back(weights[k]);
   }
   for (int i = 0; i < n; ++i) {
     Band &b = bands[std::size_t(i)];
@@ -458,7 +461,11 @@ std::vector<Band> compute_bands(const MetricsParams &p, const RowExtents &e,
     b.width_m = b.right_m - b.left_m;
     b.fill = band_fill(mask, rows.start, rows.end);
     if (int(b.n_points) >= p.min_band_points) {
-      b.depth_m = percentile(band_z[std::size_t(i)], p.band_depth_percentile) * kMmToM;
+      const auto &bz = band_z[std::size_t(i)];
+      b.depth_m = (weights.empty() ? percentile(band_z[std::size_t(i)], p.band_depth_percentile)
+                                   : weighted_percentiles(bz, band_w[std::size_t(i)],
+                                                          {p.band_depth_percentile})[0]) *
+                  kMmToM;
       b.depth_measured = true;
     }
   }
@@ -525,8 +532,9 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
   m.tree_present = true;
   m.points = pts.size();
   m.matches = points.size();
+  std::vector<double> w;
   if (p.area_weighted) {
-    const std::vector<double> w = area_weights(pts, left.mask);
+    w = area_weights(pts, left.mask);
     const std::vector<double> q = weighted_percentiles(z, w, {50.0, 5.0, 95.0});
     m.distance_m = q[0] * kMmToM;
     m.thickness_m = (q[2] - q[1]) * kMmToM;
@@ -568,7 +576,7 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
 
   std::vector<double> zb = z;
   const double near_m = percentile(zb, p.band_depth_percentile) * kMmToM;
-  m.bands = compute_bands(p, e, pts, c, g, near_m, left.mask);
+  m.bands = compute_bands(p, e, pts, c, g, near_m, left.mask, w);
 
   std::vector<cv::Point2f> px(pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i)

@@ -256,6 +256,47 @@ TEST(Canopy, StandingOnAGreenGroundPlane)
   EXPECT_LT(iou(off.silhouette.mask, truth), 0.9);
 }
 
+TEST(Canopy, GrassWithoutTextureIsNotTakenWithTheCrown)
+{
+  // The crown stands in the grass's colour region, and the grass gives no sample at all (mown
+  // grass without texture: no match). The crown's samples must not speak for the lawn around
+  // it. A second crown runs off the left border, into the strip the right camera does not see:
+  // no sample can lie there, and the samples beside it speak for it.
+  Scene s;
+  s.ground_y = 700;
+  s.spheres.push_back({cv::Vec3d(0, 0, 2400), 300});
+  s.spheres.push_back({cv::Vec3d(-900, 0, 2400), 300});
+  const Rendered r = render(s);
+  const cv::Mat crown = object_mask(r.objects, 0), cut = object_mask(r.objects, 1);
+  const double strip = s.g.fx * s.g.baseline_mm / 2100.0; // disparity of the crowns' front
+  std::vector<PixelPoint> pts;
+  for (const PixelPoint &q : grid_points(r.objects, r.points, 8)) {
+    const int obj = r.objects.at<int>(cv::Point(q.px));
+    if (obj >= 0 && q.px.x >= strip)
+      pts.push_back(q);
+  }
+  ASSERT_GT(cv::countNonZero(cut(cv::Rect(0, 0, int(strip), 480))), 500);
+
+  CanopyParams p;
+  p.mode = CanopyMode::Row;
+  const CanopyResult c = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
+  ASSERT_TRUE(c.present);
+  EXPECT_FALSE(c.ground.found); // nothing to fit it to
+  const cv::Mat both = crown | cut;
+  EXPECT_GT(iou(c.silhouette.mask, both), 0.93);
+  // Hardly any lawn farther than two sample spacings (16 px) from a crown (where the lawn
+  // borders a crown at the crown's depth, a crown's sample may speak for it; slivers remain
+  // along the horizon). Taken whole, the region would bring all of it.
+  cv::Mat near_crown;
+  cv::dilate(both, near_crown, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(33, 33)));
+  const cv::Mat far_lawn = object_mask(r.objects, -2) & ~near_crown;
+  ASSERT_GT(cv::countNonZero(far_lawn), 50000);
+  EXPECT_LT(cv::countNonZero(c.silhouette.mask & far_lawn), 0.01 * cv::countNonZero(far_lawn));
+  // The crown in the one-view strip is kept.
+  const cv::Rect sr(0, 0, int(strip), 480);
+  EXPECT_GT(cv::countNonZero(c.silhouette.mask(sr) & cut(sr)), 0.9 * cv::countNonZero(cut(sr)));
+}
+
 TEST(Canopy, TwoCanopiesThirtyCentimetresApart)
 {
   Scene s;

@@ -530,6 +530,39 @@ TEST(Metrics, BandDepthIsTheNearFaceAndGapsInterpolate)
   EXPECT_NEAR(h.bands[2].depth_m, d0 + 2 * (d3 - d0) / 3, 1e-9);
 }
 
+TEST(Metrics, BandDepthWeighsPointsByTheAreaTheyStandFor)
+{
+  // Band 1: its left half faces the camera at 2.6 m, its right half at 2.7 m; the right half's
+  // points are crowded thirty to a pixel (SIFT matches piling up on contrasted leaves). The near
+  // face is the left half's: the area each point stands for counts, not how many points there are.
+  const StereoGeometry g = camera();
+  Scene s = stepped(g, [](int) { return kZ0; });
+  std::vector<Point3> pts;
+  for (const Point3 &pt : s.points) {
+    const int band = int(std::floor((pt.y - kY0) / kStep));
+    if (band != 1) {
+      pts.push_back(pt);
+      continue;
+    }
+    const bool right = pt.x > kXc;
+    const double z = right ? 2700.0 : 2600.0;
+    Point3 q = pt;
+    q.x = float(pt.x / kZ0 * z);
+    q.y = float(pt.y / kZ0 * z);
+    q.z = float(z);
+    for (int k = 0; k < (right ? 30 : 1); ++k)
+      pts.push_back(q);
+  }
+  MetricsParams p;
+  p.n_bands = 4;
+  p.band_depth_percentile = 5;
+  const TreeMetrics m = compute_tree_metrics(s.sil, pts, g, p);
+  ASSERT_EQ(m.bands.size(), 4u);
+  EXPECT_NEAR(m.bands[1].depth_m, 2.6, 1e-6);
+  p.area_weighted = false; // every point once: the crowded far half outvotes the near one
+  EXPECT_NEAR(compute_tree_metrics(s.sil, pts, g, p).bands[1].depth_m, 2.7, 1e-6);
+}
+
 TEST(Metrics, BadInputThrows)
 {
   const StereoGeometry g = camera();

@@ -97,7 +97,7 @@ struct MetricsParams {
   // Points count only where they project onto the silhouette (within one pixel): matches
   // off the canopy (sky, ground, the next tree) do not move its figures.
   bool points_in_mask_only = true;
-  // distance and thickness as the canopy's visible surface has them: each point weighted by the
+  // distance, thickness and each band's nearest-face depth as the canopy's visible surface has them: each point weighted by the
   // silhouette area nearest to it (its Voronoi cell inside the mask), so that points crowding on
   // the textured front leaves do not pull the median forward. false: every point counts once.
   bool area_weighted = true;
