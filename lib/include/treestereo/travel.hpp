@@ -1,0 +1,154 @@
+// The rig's motion between two consecutive frames, from stereo alone (DESIGN.md "In an orchard":
+// travel is the rig's motion along the row since the previous frame).
+//
+//  1. Points of the current frame (3D, with their rectified-left pixel) are thinned to a spread
+//     set, preferring points away from depth edges (a patch across an edge holds two surfaces
+//     that part between frames); each one's right pixel follows from its depth
+//     (xr = xl - d, d = fx b / Z + doffs).
+//  2. A coarse search over the travel finds where the points stood in the previous left view
+//     (a point at depth Z stood fx T / Z px further right for a travel T): the start of the
+//     tracks, so that large motions (2 m/s at 7 frames/s is 250 px at 1296 px) need no deep
+//     pyramid.
+//  3. Both pixels are tracked back into the previous left and right views with pyramidal
+//     Lucas-Kanade; a track must come back to where it started (forward-backward check), and
+//     the two previous pixels must lie on one rectified row.
+//  4. The previous disparity gives the previous 3D point; rigid_align() finds the rotation and
+//     translation that carry the previous points onto the current ones (RANSAC + least squares)
+//     and which points agree with it.
+//  5. The motion is refined on those points by their reprojection into the previous views
+//     (Gauss-Newton, robust, tracks far off set aside): a tracked pixel is far more certain than
+//     the depth triangulated from it, whose error grows with Z^2. Over a narrow stretch of
+//     canopy at one depth a turn and a move along the row shift the image almost alike, so a
+//     second refinement starts from no turn (translation first, then all six parameters), and
+//     the one that brings more points within a pixel is kept.
+//  6. The rig's displacement is minus the translation; travel is its component along the row.
+//
+// Frames: every point and the motion are in the rectified-left camera frame (mm; x right,
+// y down, z forward). A static scene point seen at X_prev in the previous frame is at
+// X_cur = R X_prev + t in the current one; the rig moved by -t (current frame's axes, for a
+// rotation as small as between two frames). Driving towards +x (the scene slides left in the
+// image) is positive travel, as SceneRenderer::travel_mm counts it.
+#pragma once
+
+#include "treestereo/canopy.hpp"
+#include "treestereo/types.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace treestereo
+{
+
+// ---- Rigid alignment of corresponding 3D points ----
+
+struct RigidParams {
+  // RANSAC draws of 3 correspondences at most; fewer when the inlier share found so far makes a
+  // clean draw certain at `confidence` (the usual adaptive stop).
+  int iterations = 500;
+  double confidence = 0.999;
+  // A correspondence is an inlier when |R a + t - b| <= inlier_mm, or its own tolerance when
+  // tolerances are given to rigid_align().
+  double inlier_mm = 10.0;
+  // Fewer inliers than this (at least 3): no motion found.
+  int min_inliers = 6;
+  std::uint64_t seed = 1; // the draws are reproducible
+};
+
+// Throws std::runtime_error naming the field when a value is out of range.
+void validate(const RigidParams &params);
+
+struct RigidResult {
+  bool found = false;
+  cv::Matx33d R = cv::Matx33d::eye(); // b = R a + t
+  cv::Vec3d t{0, 0, 0};               // mm
+  std::size_t inliers = 0;
+  double rms_mm = 0;        // of the inliers' residuals |R a + t - b|
+  std::vector<bool> inlier; // per correspondence (empty when not found)
+};
+
+// The rotation and translation (no scale) carrying `from` onto `to` (same length, pairwise
+// correspondences), robust to outliers: RANSAC over 3-point samples, then a weighted
+// least-squares fit (Kabsch, by SVD) on the inliers, repeated while the inlier set changes.
+// `tolerance_mm`: empty, or one inlier distance per correspondence (e.g. growing with depth for
+// stereo points); the fit weighs each inlier by 1 / tolerance^2. Fewer than 3 points, points on
+// one line, or too few inliers: found = false. Throws std::runtime_error on unequal lengths or
+// a non-positive tolerance.
+RigidResult rigid_align(const std::vector<cv::Point3d> &from, const std::vector<cv::Point3d> &to,
+                        const RigidParams &params = RigidParams(),
+                        const std::vector<double> &tolerance_mm = {});
+
+// ---- The rig's motion from two stereo frames ----
+
+struct TravelParams {
+  // Points tracked per call at most, one per cell of a grid over their bounding box, the one
+  // nearest the cell's centre (away from depth edges where the cell has such a point): the
+  // spread keeps the fit away from one plane or one tree; the cap bounds the time.
+  int max_points = 400;
+  // Views are reduced to this scale before tracking (1 = full size). Half scale keeps a call at
+  // 1296x972 near 10 ms on one core; the tracks still agree with the truth to about 0.2 px of
+  // the full-size view.
+  double scale = 0.5;
+  // Lucas-Kanade window side (px, at the tracking scale) and pyramid levels above the tracking
+  // scale. A small window straddles fewer depth edges (gaps in the leaves); after the coarse
+  // search a track starts within a few pixels of its end (more where the rig also turned or a
+  // depth is wrong), and 2 levels follow about 15 px of that at the tracking scale.
+  int window = 9;
+  int levels = 2;
+  // The coarse search covers travels in [-max_travel_mm, max_travel_mm] (mm per frame). 500 mm
+  // is 3.5 m/s at 7 frames/s. 0: no search, the tracks start where the points are now and the
+  // pyramid alone must span the motion.
+  double max_travel_mm = 500;
+  // Forward-backward check: a track tracked back must return within this (px, full size).
+  double max_fb_px = 0.5;
+  // The previous left and right pixels must lie on one row within this (px, full size): the
+  // views are rectified, so a larger difference is a wrong track.
+  double max_row_px = 1.0;
+  // Inlier tolerance of a point (mm): tol_mm + the depth error a disparity error of tol_px
+  // makes at its depth (Z^2 tol_px / (fx b)): stereo depth is that much less certain far away.
+  double tol_mm = 5.0;
+  double tol_px = 0.3;
+  // Fewer tracked points or inliers than this: no motion found.
+  int min_inliers = 20;
+  // RANSAC draws of the 3D fit at most (rigid_align stops earlier once a clean draw is certain).
+  int ransac_iterations = 300;
+  // Refine the 3D fit by the reprojection of its inliers (step 5); false: the 3D fit as it is,
+  // several times less accurate along the row.
+  bool refine = true;
+};
+
+// Throws std::runtime_error naming the field when a value is out of range.
+void validate(const TravelParams &params);
+
+struct Motion {
+  bool found = false;
+  // X_cur = R X_prev + t for a static point (rectified-left frames, mm).
+  cv::Matx33d R = cv::Matx33d::eye();
+  cv::Vec3d t{0, 0, 0};
+  cv::Vec3d displacement_mm{0, 0, 0}; // the rig's motion, -t, in the current frame's axes
+  cv::Vec3d along{1, 0, 0};           // the unit direction along the row used
+  double travel_mm = 0;               // displacement_mm . along: positive towards +x
+  double rotation_deg = 0;            // angle of R
+  std::size_t points = 0;             // points tracked from (after thinning)
+  std::size_t tracked = 0;            // passed both tracks, the checks and triangulation
+  std::size_t inliers = 0;            // the points the motion rests on (refined: those kept)
+  double rms_mm = 0;                  // the 3D fit's residual over its inliers
+  double rms_px = -1;                 // the refined reprojection error (px); -1: not refined
+  double prior_mm = 0;                // the coarse search's travel (along x), where tracks began
+};
+
+// The motion of the rig from the previous stereo frame to the current one. `prev_left`,
+// `prev_right`, `left`, `right`: rectified views of the geometry's view size, all one type
+// (CV_8UC1, or CV_8UC3 / CV_8UC4 in BGR(A)); `points`: the current frame's 3D points with their
+// left pixels (invalid ones are skipped); `ground`: the current frame's ground plane, if found:
+// travel is then measured along the camera's x axis projected onto it, otherwise along x.
+// found = false when too few points track or agree. Throws std::runtime_error on inconsistent
+// input or parameters.
+Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, const cv::Mat &left,
+                       const cv::Mat &right, const std::vector<PixelPoint> &points,
+                       const StereoGeometry &geometry, const TravelParams &params = TravelParams(),
+                       const GroundPlane &ground = GroundPlane());
+
+} // namespace treestereo

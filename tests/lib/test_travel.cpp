@@ -1,0 +1,530 @@
+// The rig's motion between frames: rigid_align on constructed point sets with a known motion, and
+// estimate_motion on consecutive frames of the synthetic orchard, whose travel is known exactly.
+#include "treestereo/travel.hpp"
+
+#include "treestereo/rectify.hpp"
+#include "treestereo/scene.hpp"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+using namespace treestereo;
+
+namespace
+{
+
+double angle_deg(const cv::Matx33d &R)
+{
+  return std::acos(std::clamp((cv::trace(R) - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / CV_PI;
+}
+
+cv::Matx33d rotation(const cv::Vec3d &axis, double deg)
+{
+  cv::Matx33d R;
+  cv::Rodrigues(cv::normalize(axis) * (deg * CV_PI / 180.0), R);
+  return R;
+}
+
+// Points spread through a box like an orchard seen from the rig (mm), their images under
+// (R, t) with Gaussian noise, and a share of them replaced by points anywhere in the box.
+struct PointSets {
+  std::vector<cv::Point3d> from, to;
+  std::vector<bool> outlier;
+};
+
+PointSets make_sets(int n, const cv::Matx33d &R, const cv::Vec3d &t, double noise_mm,
+                    double outlier_share, std::uint64_t seed)
+{
+  cv::RNG rng(seed);
+  PointSets s;
+  for (int i = 0; i < n; ++i) {
+    const cv::Point3d a(rng.uniform(-1200.0, 1200.0), rng.uniform(-900.0, 900.0),
+                        rng.uniform(1500.0, 6000.0));
+    const cv::Vec3d b = R * cv::Vec3d(a) + t;
+    const bool out = i < int(std::lround(outlier_share * n));
+    s.from.push_back(a);
+    s.to.push_back(out ? cv::Point3d(rng.uniform(-1200.0, 1200.0), rng.uniform(-900.0, 900.0),
+                                     rng.uniform(1500.0, 6000.0))
+                       : cv::Point3d(b[0] + rng.gaussian(noise_mm), b[1] + rng.gaussian(noise_mm),
+                                     b[2] + rng.gaussian(noise_mm)));
+    s.outlier.push_back(out);
+  }
+  return s;
+}
+
+} // namespace
+
+TEST(RigidAlign, ExactPointsGiveTheExactMotion)
+{
+  const cv::Matx33d R = rotation({0.2, 1.0, -0.1}, 7.0);
+  const cv::Vec3d t(-286.0, 4.0, -12.0);
+  const PointSets s = make_sets(50, R, t, 0.0, 0.0, 11);
+  const RigidResult r = rigid_align(s.from, s.to);
+  ASSERT_TRUE(r.found);
+  EXPECT_EQ(r.inliers, 50u);
+  EXPECT_LT(cv::norm(r.R - R, cv::NORM_INF), 1e-9);
+  EXPECT_LT(cv::norm(r.t - t), 1e-6);
+  EXPECT_LT(r.rms_mm, 1e-6);
+}
+
+TEST(RigidAlign, RecoversTheMotionWith30PercentOutliersAndNoise)
+{
+  struct Case {
+    cv::Vec3d axis;
+    double deg;
+    cv::Vec3d t;
+  };
+  const Case cases[] = {
+      {{0, 1, 0}, 0.0, {-71.4, 0.0, 0.0}},       // driving straight at 0.5 m/s, 7 frames/s
+      {{0.1, 1, 0.05}, 1.5, {-285.7, 3.0, 8.0}}, // 2 m/s with a little yaw
+      {{1, -0.3, 0.4}, 25.0, {150.0, -300.0, 900.0}},
+      {{-0.5, 0.2, 1}, 120.0, {2000.0, 500.0, -1000.0}},
+  };
+  int k = 0;
+  for (const Case &c : cases) {
+    SCOPED_TRACE("case " + std::to_string(k));
+    const cv::Matx33d R = rotation(c.axis, c.deg);
+    const double noise = 1.0;
+    const PointSets s = make_sets(300, R, c.t, noise, 0.3, 100 + std::uint64_t(k++));
+    const RigidResult r = rigid_align(s.from, s.to); // inlier_mm 10: 5.8 sigma of the 3D noise
+    ASSERT_TRUE(r.found);
+    // Every clean point within the tolerance is kept, no outlier is.
+    std::size_t wrong = 0;
+    for (std::size_t i = 0; i < s.from.size(); ++i)
+      wrong += r.inlier[i] == s.outlier[i];
+    EXPECT_EQ(wrong, 0u);
+    EXPECT_EQ(r.inliers, 210u);
+    // 210 points over ~2 m with 1 mm noise: the rotation to a few thousandths of a degree, the
+    // translation to well under a millimetre (its error is the rotation's times ~4 m of lever).
+    EXPECT_LT(angle_deg(r.R.t() * R), 0.01);
+    EXPECT_LT(cv::norm(r.t - c.t), 1.0);
+    // The residual of 3D Gaussian noise on one side: sqrt(3) sigma.
+    EXPECT_NEAR(r.rms_mm, std::sqrt(3.0) * noise, 0.25);
+  }
+}
+
+TEST(RigidAlign, PerPointTolerancesDecideTheInliersAndWeighTheFit)
+{
+  // Far points with large errors: inliers under their own (large) tolerance, and weighed so
+  // little that they do not pull the fit off the near points' motion.
+  const cv::Matx33d R = rotation({0, 1, 0}, 2.0);
+  const cv::Vec3d t(-100, 0, 5);
+  PointSets s = make_sets(200, R, t, 0.2, 0.0, 7);
+  std::vector<double> tol(s.from.size(), 2.0);
+  cv::RNG rng(8);
+  for (std::size_t i = 0; i < s.from.size(); i += 4) {
+    s.to[i] += cv::Point3d(rng.uniform(-25.0, 25.0), 0, rng.uniform(-25.0, 25.0));
+    tol[i] = 60.0;
+  }
+  const RigidResult r = rigid_align(s.from, s.to, RigidParams(), tol);
+  ASSERT_TRUE(r.found);
+  EXPECT_EQ(r.inliers, s.from.size());
+  EXPECT_LT(cv::norm(r.t - t), 0.5);
+  EXPECT_LT(angle_deg(r.R.t() * R), 0.01);
+  // With one tolerance for all (10 mm) most of the disturbed points are outliers.
+  const RigidResult plain = rigid_align(s.from, s.to);
+  ASSERT_TRUE(plain.found);
+  EXPECT_LT(plain.inliers, s.from.size() - 20);
+}
+
+TEST(RigidAlign, DegenerateInputIsNotFoundAndBadInputThrows)
+{
+  const cv::Matx33d R = rotation({0, 1, 0}, 3.0);
+  const cv::Vec3d t(-50, 0, 0);
+  // Too few points.
+  for (int n : {0, 1, 2}) {
+    const PointSets s = make_sets(n, R, t, 0.0, 0.0, 1);
+    RigidParams p;
+    p.min_inliers = 3;
+    EXPECT_FALSE(rigid_align(s.from, s.to, p).found) << n << " points";
+  }
+  // Points on one line (with and without a little noise across it): the rotation about the line
+  // is undetermined.
+  for (double across : {0.0, 0.01}) {
+    std::vector<cv::Point3d> a, b;
+    cv::RNG rng(3);
+    for (int i = 0; i < 100; ++i) {
+      const double s = rng.uniform(-1000.0, 1000.0);
+      const cv::Point3d p(0.6 * s + rng.gaussian(across), 0.3 * s + rng.gaussian(across),
+                          3000 + 0.74 * s);
+      a.push_back(p);
+      const cv::Vec3d q = R * cv::Vec3d(p) + t;
+      b.emplace_back(q[0], q[1], q[2]);
+    }
+    EXPECT_FALSE(rigid_align(a, b).found) << "collinear, noise " << across;
+  }
+  // All at one point.
+  {
+    std::vector<cv::Point3d> a(20, cv::Point3d(1, 2, 3000)), b(20, cv::Point3d(-49, 2, 3000));
+    EXPECT_FALSE(rigid_align(a, b).found);
+  }
+  // Non-finite points take no part.
+  {
+    PointSets s = make_sets(40, R, t, 0.0, 0.0, 5);
+    s.from[3].x = std::nan("");
+    s.to[7].z = std::numeric_limits<double>::infinity();
+    const RigidResult r = rigid_align(s.from, s.to);
+    ASSERT_TRUE(r.found);
+    EXPECT_EQ(r.inliers, 38u);
+    EXPECT_LT(cv::norm(r.t - t), 1e-6);
+  }
+  const PointSets s = make_sets(10, R, t, 0.0, 0.0, 1);
+  std::vector<cv::Point3d> shorter(s.to.begin(), s.to.end() - 1);
+  EXPECT_THROW(rigid_align(s.from, shorter), std::runtime_error);
+  EXPECT_THROW(rigid_align(s.from, s.to, RigidParams(), std::vector<double>(3, 1.0)),
+               std::runtime_error);
+  EXPECT_THROW(rigid_align(s.from, s.to, RigidParams(), std::vector<double>(10, 0.0)),
+               std::runtime_error);
+  RigidParams bad;
+  bad.inlier_mm = 0;
+  try {
+    rigid_align(s.from, s.to, bad);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::runtime_error &e) {
+    EXPECT_NE(std::string(e.what()).find("inlier_mm"), std::string::npos) << e.what();
+  }
+  bad = RigidParams();
+  bad.min_inliers = 2;
+  EXPECT_THROW(rigid_align(s.from, s.to, bad), std::runtime_error);
+}
+
+// ---- estimate_motion on the synthetic orchard ----
+
+namespace
+{
+
+// One frame of an orchard sequence: both views rendered and rectified with the rig's own
+// calibration, and 3D points of the left view from the renderer's exact depth.
+struct Frame {
+  cv::Mat view[2];                    // BGR, rectified
+  std::vector<PixelPoint> vegetation; // a grid over the leaves (any tree, either row)
+  std::vector<PixelPoint> textured;   // a grid over everything but the sky
+};
+
+struct Sequence {
+  std::unique_ptr<SceneRenderer> renderer;
+  StereoRectification rect;
+};
+
+SceneParams orchard(cv::Size size, double speed_m_s)
+{
+  SceneParams p;
+  p.kind = SceneKind::Orchard;
+  p.seed = 5;
+  p.image_size = size;
+  p.speed_m_s = speed_m_s;
+  p.framerate = 7.0;
+  return p;
+}
+
+// Grid samples (every `step` px of the rendered view) of the surfaces, carried exactly into the
+// rectified-left frame: the 3D hit rotated by R1 and projected with the rectified camera.
+Frame render_frame(const Sequence &s, std::uint64_t frame, int step)
+{
+  Frame f;
+  GroundTruth truth;
+  for (int v = 0; v < 2; ++v) {
+    cv::Mat rgb, bgr;
+    s.renderer->render(v, frame, rgb, v == LEFT ? &truth : nullptr);
+    cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+    rectify_view(s.rect, v, bgr, f.view[v]);
+  }
+  const StereoGeometry &g = s.rect.geometry;
+  const cv::Mat &rays = s.renderer->normalized_rays(LEFT);
+  for (int y = step / 2; y < truth.depth.rows; y += step)
+    for (int x = step / 2; x < truth.depth.cols; x += step) {
+      const float z = truth.depth.at<float>(y, x);
+      if (!(z > 0))
+        continue;
+      const cv::Vec2f n = rays.at<cv::Vec2f>(y, x);
+      const cv::Vec3d X = g.R1 * cv::Vec3d(n[0] * z, n[1] * z, z);
+      PixelPoint q;
+      q.px = cv::Point2f(float(g.fx * X[0] / X[2] + g.cx[LEFT]), float(g.fy * X[1] / X[2] + g.cy));
+      q.p.x = float(X[0]);
+      q.p.y = float(X[1]);
+      q.p.z = float(X[2]);
+      if (q.px.x < 0 || q.px.y < 0 || q.px.x > g.view_size.width - 1 ||
+          q.px.y > g.view_size.height - 1)
+        continue;
+      const SurfaceLabel l = SurfaceLabel(truth.labels.at<uchar>(y, x));
+      f.textured.push_back(q);
+      if (l == SurfaceLabel::Leaf || l == SurfaceLabel::RowLeaf || l == SurfaceLabel::BackLeaf)
+        f.vegetation.push_back(q);
+    }
+  return f;
+}
+
+Sequence make_sequence(cv::Size size, double speed)
+{
+  Sequence s;
+  s.renderer = std::make_unique<SceneRenderer>(orchard(size, speed));
+  s.rect = compute_rectification(s.renderer->calibration(), size);
+  return s;
+}
+
+// Frames rendered once for all tests: key = (width, speed in mm/s, frame).
+const Frame &frame_of(cv::Size size, double speed, std::uint64_t frame,
+                      const StereoGeometry **g = nullptr)
+{
+  static std::map<std::pair<int, int>, Sequence> seqs;
+  static std::map<std::tuple<int, int, std::uint64_t>, Frame> frames;
+  const std::pair<int, int> key(size.width, int(std::lround(speed * 1000)));
+  auto it = seqs.find(key);
+  if (it == seqs.end())
+    it = seqs.emplace(key, make_sequence(size, speed)).first;
+  if (g)
+    *g = &it->second.rect.geometry;
+  const auto fk = std::make_tuple(key.first, key.second, frame);
+  auto ft = frames.find(fk);
+  if (ft == frames.end())
+    ft = frames.emplace(fk, render_frame(it->second, frame, size.width > 1000 ? 8 : 4)).first;
+  return ft->second;
+}
+
+double truth_travel(cv::Size size, double speed, std::uint64_t k)
+{
+  const SceneRenderer r(orchard(size, speed));
+  return r.travel_mm(k) - r.travel_mm(k - 1);
+}
+
+const cv::Size kFull(1296, 972), kVga(640, 480);
+
+} // namespace
+
+// The travel of consecutive frames at 0.5 and 2 m/s (7 frames/s), at both sizes, from a grid
+// over the vegetation and from a grid over everything with texture.
+TEST(EstimateMotion, TravelOfConsecutiveOrchardFramesIsTheRenderersTravel)
+{
+  for (cv::Size size : {kVga, kFull})
+    for (double speed : {0.5, 2.0})
+      for (std::uint64_t k : {std::uint64_t(3), std::uint64_t(9)}) {
+        const StereoGeometry *g = nullptr;
+        const Frame &prev = frame_of(size, speed, k - 1);
+        const Frame &cur = frame_of(size, speed, k, &g);
+        const double truth = truth_travel(size, speed, k);
+        for (int which = 0; which < 2; ++which) {
+          const std::vector<PixelPoint> &pts = which == 0 ? cur.vegetation : cur.textured;
+          const Motion m = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                           cur.view[RIGHT], pts, *g);
+          std::printf("%dx%d %.1f m/s frame %d %-10s: travel %.2f mm (truth %.2f, error %+.2f mm, "
+                      "%+.2f %%), prior %.0f mm, rotation %.3f deg, %zu points, %zu tracked, %zu "
+                      "inliers, rms %.2f mm %.3f px\n",
+                      size.width, size.height, speed, int(k),
+                      which == 0 ? "vegetation" : "textured", m.travel_mm, truth,
+                      m.travel_mm - truth, 100 * (m.travel_mm - truth) / truth, m.prior_mm,
+                      m.rotation_deg, m.points, m.tracked, m.inliers, m.rms_mm, m.rms_px);
+          SCOPED_TRACE(std::to_string(size.width) + " px, " + std::to_string(speed) +
+                       " m/s, frame " + std::to_string(k) +
+                       (which == 0 ? ", vegetation" : ", textured"));
+          ASSERT_TRUE(m.found);
+          EXPECT_NEAR(m.travel_mm, truth, std::max(0.02 * truth, 3.0));
+          // The rig drives straight: no rotation, and the displacement is along x (in the
+          // rectified frame, R1 turns the rig's x by a fraction of a degree).
+          const cv::Vec3d d_true = g->R1 * cv::Vec3d(truth, 0, 0);
+          EXPECT_LT(cv::norm(m.displacement_mm - d_true), std::max(0.03 * truth, 4.0));
+          EXPECT_LT(m.rotation_deg, 0.1);
+          EXPECT_GE(m.tracked, std::size_t(0.25 * double(m.points)));
+          EXPECT_GE(m.inliers, std::size_t(0.5 * double(m.tracked)));
+          EXPECT_LE(m.points, 400u);
+        }
+      }
+}
+
+TEST(EstimateMotion, TravelIsMeasuredAlongTheGroundWhenTheGroundIsGiven)
+{
+  const StereoGeometry *g = nullptr;
+  const Frame &prev = frame_of(kVga, 2.0, 2);
+  const Frame &cur = frame_of(kVga, 2.0, 3, &g);
+  const double truth = truth_travel(kVga, 2.0, 3);
+  // The renderer's ground: y = camera height in the rendered left frame, normal up (-y).
+  GroundPlane level;
+  level.found = true;
+  level.normal = g->R1 * cv::Vec3d(0, -1, 0);
+  level.d = 950;
+  const Motion a = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                   cur.view[RIGHT], cur.vegetation, *g, TravelParams(), level);
+  ASSERT_TRUE(a.found);
+  EXPECT_NEAR(a.travel_mm, truth, 0.02 * truth);
+  EXPECT_LT(std::abs(a.along.dot(level.normal)), 1e-9);
+  // A ground rolled 30 degrees about the optical axis: along the row is then 30 degrees off the
+  // camera's x, and only cos(30) of the rig's motion is along it.
+  GroundPlane rolled = level;
+  rolled.normal = g->R1 * cv::Vec3d(std::sin(CV_PI / 6), -std::cos(CV_PI / 6), 0);
+  const Motion b = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                   cur.view[RIGHT], cur.vegetation, *g, TravelParams(), rolled);
+  ASSERT_TRUE(b.found);
+  EXPECT_NEAR(b.travel_mm, truth * std::cos(CV_PI / 6), 0.02 * truth);
+  // A plane not found is not used.
+  GroundPlane none = rolled;
+  none.found = false;
+  const Motion c = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                   cur.view[RIGHT], cur.vegetation, *g, TravelParams(), none);
+  EXPECT_EQ(c.along, cv::Vec3d(1, 0, 0));
+}
+
+TEST(EstimateMotion, FramesInReverseAreNegativeTravel)
+{
+  // The previous frame is the later one: the rig drove towards -x between them.
+  for (double speed : {0.5, 2.0}) {
+    const StereoGeometry *g = nullptr;
+    const Frame &later = frame_of(kVga, speed, 3);
+    const Frame &earlier = frame_of(kVga, speed, 2, &g);
+    const double truth = -truth_travel(kVga, speed, 3);
+    const Motion m = estimate_motion(later.view[LEFT], later.view[RIGHT], earlier.view[LEFT],
+                                     earlier.view[RIGHT], earlier.textured, *g);
+    ASSERT_TRUE(m.found) << speed << " m/s";
+    EXPECT_NEAR(m.travel_mm, truth, std::max(0.02 * std::abs(truth), 3.0)) << speed << " m/s";
+  }
+}
+
+TEST(EstimateMotion, AStandingRigHasNoTravel)
+{
+  for (cv::Size size : {kVga, kFull}) {
+    const StereoGeometry *g = nullptr;
+    const Frame &prev = frame_of(size, 0.0, 0);
+    const Frame &cur = frame_of(size, 0.0, 1, &g); // the same scene, other sensor noise
+    const Motion m = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                     cur.view[RIGHT], cur.vegetation, *g);
+    std::printf("%dx%d standing: travel %+.3f mm, displacement %.3f mm, %zu inliers\n", size.width,
+                size.height, m.travel_mm, cv::norm(m.displacement_mm), m.inliers);
+    ASSERT_TRUE(m.found);
+    EXPECT_LT(std::abs(m.travel_mm), 1.0);
+    EXPECT_LT(cv::norm(m.displacement_mm), 2.0);
+  }
+}
+
+TEST(EstimateMotion, ViewsWithoutTextureAreNotFound)
+{
+  const StereoGeometry *g = nullptr;
+  const Frame &cur = frame_of(kVga, 0.5, 3, &g);
+  const cv::Mat black(cur.view[LEFT].size(), cur.view[LEFT].type(), cv::Scalar::all(0));
+  const cv::Mat grey(cur.view[LEFT].size(), cur.view[LEFT].type(), cv::Scalar::all(128));
+  for (const cv::Mat &flat : {black, grey}) {
+    const Motion both = estimate_motion(flat, flat, flat, flat, cur.vegetation, *g);
+    EXPECT_FALSE(both.found);
+    EXPECT_EQ(both.tracked, 0u);
+    // The previous views blank, the current ones the orchard: nothing to track into.
+    const Motion prev_blank =
+        estimate_motion(flat, flat, cur.view[LEFT], cur.view[RIGHT], cur.vegetation, *g);
+    EXPECT_FALSE(prev_blank.found);
+  }
+  // No points, or only invalid ones.
+  std::vector<PixelPoint> invalid = cur.vegetation;
+  for (PixelPoint &q : invalid)
+    q.p.valid = false;
+  const Frame &prev = frame_of(kVga, 0.5, 2);
+  EXPECT_FALSE(
+      estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT], cur.view[RIGHT], {}, *g)
+          .found);
+  EXPECT_FALSE(estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT], cur.view[RIGHT],
+                               invalid, *g)
+                   .found);
+}
+
+TEST(EstimateMotion, GreyViewsWork)
+{
+  const StereoGeometry *g = nullptr;
+  const Frame &prev = frame_of(kVga, 0.5, 2);
+  const Frame &cur = frame_of(kVga, 0.5, 3, &g);
+  cv::Mat v[4];
+  const cv::Mat *src[4] = {&prev.view[LEFT], &prev.view[RIGHT], &cur.view[LEFT], &cur.view[RIGHT]};
+  for (int i = 0; i < 4; ++i)
+    cv::cvtColor(*src[i], v[i], cv::COLOR_BGR2GRAY);
+  const Motion m = estimate_motion(v[0], v[1], v[2], v[3], cur.vegetation, *g);
+  ASSERT_TRUE(m.found);
+  const double truth = truth_travel(kVga, 0.5, 3);
+  EXPECT_NEAR(m.travel_mm, truth, std::max(0.02 * truth, 3.0));
+}
+
+TEST(EstimateMotion, BadInputAndParametersThrow)
+{
+  const StereoGeometry *g = nullptr;
+  const Frame &prev = frame_of(kVga, 0.5, 2);
+  const Frame &cur = frame_of(kVga, 0.5, 3, &g);
+  const cv::Mat &pl = prev.view[LEFT], &pr = prev.view[RIGHT], &l = cur.view[LEFT],
+                &r = cur.view[RIGHT];
+  cv::Mat small, grey, wide;
+  cv::resize(l, small, cv::Size(320, 240));
+  cv::cvtColor(l, grey, cv::COLOR_BGR2GRAY);
+  l.convertTo(wide, CV_16U);
+  EXPECT_THROW(estimate_motion(pl, pr, small, r, cur.vegetation, *g), std::runtime_error);
+  EXPECT_THROW(estimate_motion(pl, pr, grey, r, cur.vegetation, *g), std::runtime_error);
+  EXPECT_THROW(estimate_motion(wide, wide, wide, wide, cur.vegetation, *g), std::runtime_error);
+  EXPECT_THROW(estimate_motion(pl, pr, l, r, cur.vegetation, StereoGeometry()), std::runtime_error);
+
+  auto field_named = [&](TravelParams p, const char *field) {
+    try {
+      estimate_motion(pl, pr, l, r, cur.vegetation, *g, p);
+      ADD_FAILURE() << field << ": no exception";
+    } catch (const std::runtime_error &e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  TravelParams p;
+  p.max_points = 2;
+  field_named(p, "max_points");
+  p = TravelParams();
+  p.scale = 0;
+  field_named(p, "scale");
+  p = TravelParams();
+  p.window = 14;
+  field_named(p, "window");
+  p = TravelParams();
+  p.levels = -1;
+  field_named(p, "levels");
+  p = TravelParams();
+  p.max_fb_px = 0;
+  field_named(p, "max_fb_px");
+  p = TravelParams();
+  p.max_row_px = -1;
+  field_named(p, "max_row_px");
+  p = TravelParams();
+  p.tol_mm = 0;
+  field_named(p, "tol_mm");
+  p = TravelParams();
+  p.tol_px = std::nan("");
+  field_named(p, "tol_px");
+  p = TravelParams();
+  p.min_inliers = 2;
+  field_named(p, "min_inliers");
+  p = TravelParams();
+  p.ransac_iterations = 0;
+  field_named(p, "ransac_iterations");
+}
+
+// Time per call on one core at 1296x972 (printed, not asserted: the machine is shared).
+TEST(EstimateMotion, TimePerCall)
+{
+  const StereoGeometry *g = nullptr;
+  const Frame &prev = frame_of(kFull, 2.0, 8);
+  const Frame &cur = frame_of(kFull, 2.0, 9, &g);
+  const int threads = cv::getNumThreads();
+  cv::setNumThreads(1);
+  std::vector<double> ms;
+  for (int i = 0; i < 7; ++i) {
+    const std::int64_t t0 = cv::getTickCount();
+    const Motion m = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                     cur.view[RIGHT], cur.vegetation, *g);
+    ms.push_back(1000.0 * double(cv::getTickCount() - t0) / cv::getTickFrequency());
+    EXPECT_TRUE(m.found);
+  }
+  cv::setNumThreads(threads);
+  std::sort(ms.begin(), ms.end());
+  std::printf("estimate_motion at 1296x972, one thread: median %.1f ms (min %.1f, max %.1f)\n",
+              ms[ms.size() / 2], ms.front(), ms.back());
+}
