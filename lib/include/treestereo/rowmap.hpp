@@ -1,0 +1,126 @@
+// The row map: the near row's canopy as a grid of travel bins (along the row) by height bands
+// (above the ground), what a sprayer's nozzle sections need (DESIGN.md "In an orchard": the row
+// map, CSV rows position_m, band, present, distance_m, fill).
+//
+// Bands are fixed heights above the ground, not shares of each tree's height: a sprayer's
+// nozzle sections sit at fixed heights on the boom. Band 0 is the lowest. Defaults: 400 to
+// 1600 mm in 4 bands of 300 mm, for the renderer's orchard (SceneParams: a 500 mm clear trunk
+// under a 900 mm canopy, neighbours 0.85-1.1 times as high, so canopies span about 0.5-1.5 m;
+// the camera at 950 mm sees the middle bands straight on).
+//
+// Per frame (add_frame): the canopy mask of the left rectified view, the canopy's 3D points with
+// their pixels, the geometry, the ground plane (select_canopy()'s, or one from the rig's camera
+// height and pitch: rig_ground()) and the rig's position along the row. Each pixel is placed at
+// the canopy's depth in its column: the median depth of the points in a strip of columns around
+// it (strips without points take the nearest strip's, columns far from any point the canopy's
+// median depth). Its world x is X + position, its height the ground plane's height of the 3D
+// point. A cell (bin, band) of that frame:
+//  - fill: the share of the cell's pixels (those the view has of it) that are canopy;
+//  - present: fill >= min_fill;
+//  - distance_m: the near face, the 5th percentile of the depths of the points in the cell, or,
+//    without points, the smallest column depth of its canopy pixels.
+// Each bin (all bands) is taken from the frame that sees the bin's centre nearest the image
+// centre, among the frames that see the whole bin: there a depth error moves a pixel least
+// along the row (X = Z * (u - cx) / fx, and (u - cx) is smallest), the crown's side is least
+// foreshortened into its front, and the bin is far from the image edge, where the canopy is cut.
+// A band the chosen frame does not see (above or below the image) is unseen: present = false.
+#pragma once
+
+#include "treestereo/canopy.hpp"
+#include "treestereo/rowtrack.hpp"
+#include "treestereo/types.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace treestereo {
+
+struct RowMapParams {
+  double bin_mm = 50;  // travel bin along the row
+  // Band edges, heights above the ground (mm), ascending, at least two; empty = n_bands equal
+  // bands from min_height_mm to max_height_mm.
+  std::vector<double> band_edges_mm;
+  double min_height_mm = 400, max_height_mm = 1600;
+  int n_bands = 4;
+  // A cell is present from this share of canopy on (a stray pixel is no canopy to spray).
+  double min_fill = 0.02;
+  // Columns per depth strip (px): the points of a strip give its columns' depth.
+  int strip_px = 8;
+};
+
+// Throws std::runtime_error naming the field when a value is out of range.
+void validate(const RowMapParams &params);
+
+// The ground of a rig whose optical centre is camera_height_mm above it, pitched down by
+// pitch_deg, in the rectified-left frame (as select_canopy's GroundModel::Rig).
+GroundPlane rig_ground(const StereoGeometry &geometry, double camera_height_mm, double pitch_deg);
+
+struct RowMapCell {
+  bool seen = false;     // a frame saw this cell
+  bool present = false;  // canopy in it (fill >= min_fill)
+  double distance_m = 0; // near-face depth, when present
+  double fill = 0;       // share of the cell covered by canopy (0..1)
+};
+
+struct RowMapRenderParams {
+  int px_per_bin = 8;        // width of a bin (px)
+  double px_per_m_height = 160; // height scale (px per m above the ground)
+  // Colour scale of the distance (m); both 0: from the cells present.
+  double distance_min_m = 0, distance_max_m = 0;
+};
+
+class RowMap {
+public:
+  explicit RowMap(const RowMapParams &params = RowMapParams()); // validates
+
+  // Adds one frame. `canopy_mask`: CV_8U of the view size, non-zero = canopy (the left
+  // rectified view); `points`: the canopy's 3D points (invalid ones and those off the mask are
+  // ignored); `ground`: must be found. Throws std::runtime_error on inconsistent input.
+  void add_frame(const cv::Mat &canopy_mask, const std::vector<PixelPoint> &points,
+                 const StereoGeometry &geometry, const GroundPlane &ground, double position_mm);
+
+  const RowMapParams &params() const { return params_; }
+  const std::vector<double> &band_edges_mm() const { return edges_; }
+  int n_bands() const { return int(edges_.size()) - 1; }
+  bool empty() const { return bins_.empty(); }
+  // First and last bin index seen (bin b covers [b, b + 1) * bin_mm of world x).
+  long first_bin() const;
+  long last_bin() const;
+  // The cell of bin b (index as above), band k (0 = lowest); an unseen default cell outside.
+  RowMapCell cell(long bin, int band) const;
+
+  // One row per bin (first_bin() to last_bin()) and band: position_m (the bin's centre, m),
+  // band, present (0/1), distance_m (empty when not present), fill. Throws std::runtime_error
+  // naming the path when it cannot be written.
+  void write_csv(const std::string &path) const;
+
+  // The map as a picture (CV_8UC3, BGR): travel along x (world x rising to the right), height
+  // above the ground along y (ground at the bottom), each cell coloured by its distance
+  // (cv::COLORMAP_TURBO; a scale bar below), cells seen without canopy dark grey, unseen cells
+  // black; `trees`: their ids and extents (start_m to end_m) marked above the map.
+  // Size: width = kMarginLeft + bins * px_per_bin + kMarginRight, height = kMarginTop +
+  // round(top band edge (m) * px_per_m_height) + kMarginBottom (render_size()).
+  cv::Mat render(const std::vector<TreeRecord> &trees = {},
+                 const RowMapRenderParams &render = RowMapRenderParams()) const;
+  cv::Size render_size(const RowMapRenderParams &render = RowMapRenderParams()) const;
+  static constexpr int kMarginLeft = 70, kMarginRight = 20, kMarginTop = 50, kMarginBottom = 80;
+
+  // render() written with cv::imwrite (the format from the extension). Throws std::runtime_error
+  // naming the path when the map is empty or the file cannot be written.
+  void write_png(const std::string &path, const std::vector<TreeRecord> &trees = {},
+                 const RowMapRenderParams &render = RowMapRenderParams()) const;
+
+private:
+  struct Bin {
+    double centre_offset = 0; // |slope of the bin centre's ray| in the frame it came from
+    std::vector<RowMapCell> cells;
+  };
+  RowMapParams params_;
+  std::vector<double> edges_;
+  std::map<long, Bin> bins_;
+};
+
+} // namespace treestereo

@@ -1,0 +1,184 @@
+// Following the near row's trees along the row: one record per tree (DESIGN.md "In an orchard":
+// the tree record), built from the per-frame segments of select_canopy() and the tree in
+// front's TreeMetrics.
+//
+// World coordinate along the row: the rig's position since the start (travel) plus the camera
+// x of a point, as the renderer's row_trees() has it (mm internally, m in the record). The rig
+// may drive either way; the direction is taken from the change of position (TrackerParams::
+// forward until it moves).
+//
+// Per frame (TrackFrame): the position, the slopes x/z of the image's left and right edge rays
+// (view_slopes() from the rectified geometry), the near row's segments and, when a tree was
+// measured, its TreeMetrics and the index of the segment they describe.
+//
+//  - A segment end is cut by the image edge when it lies within edge_margin_mm of that edge's
+//    ray at the segment's front depth (near_mm). Points deeper than the front stand further
+//    out on an edge ray, so a segment that runs out of the view always tests cut; a segment
+//    whose deep limb ends just inside the edge may test cut too, which only costs that frame's
+//    end for start_m / end_m.
+//  - Association: each segment's world extent against each track's last world extent, widened
+//    by match_tolerance_mm (travel error, sparse points at the limbs); pairs taken one to one,
+//    largest overlap first. A segment no track takes starts a new track (ids count up from 1)
+//    unless it overlaps a track already taken this frame: mode Tree counts it as a split of that
+//    tree (a sparse frame), mode Row as more of the same canopy. One segment over two tracks:
+//    mode Tree keeps both tracks alive without updating them (two trees seen as one: neither's
+//    extent nor the measurement is trusted); mode Row merges them (touching canopies are one).
+//  - Fusion (median over frames): height from the frames whose metrics are clipped neither at
+//    the top nor the bottom, width from those clipped neither left nor right, distance,
+//    thickness, bands and confidence from the frames fully in view (no clipped side). start_m
+//    from the frames whose segment is not cut on its low-x side, end_m likewise on the high-x
+//    side. A clipped extent never enters a median.
+//  - position_m is the canopy's centre along the row, (start_m + end_m) / 2: the trunk is not
+//    measured; on a symmetric crown the two agree.
+//  - confidence is the median over the fused frames, like every other fused value: the record
+//    stands on the median frame, and one frame of poor depth support (a blurred view) does not
+//    say the record is poorly supported.
+//  - A track not seen for more than grace_frames frames is lost. A track not seen in a frame is
+//    emitted when its far end (the side that leaves last: its highest world x when driving
+//    along +x) is behind the view's trailing edge at its front depth, or when it is lost;
+//    finish() emits every track left. A new segment over a tree that left in the last records
+//    is what is still in view of it (a limb behind the front reaches further out on the edge
+//    ray) and starts no track; a lost tree seen again starts a new one.
+//  - A tree never fully in view (never a frame without clipped sides, or an end never seen off
+//    the image edge) still gets a record, with complete = false and the fields it lacks absent
+//    (has_height etc.): a sprayer log needs to know a tree was passed, and no clipped number is
+//    ever reported as a measurement.
+//  - Spacing: spacing_m = |position_m - the previous record's position_m| (centre to centre),
+//    gap_m = the empty stretch between the previous record's canopy and this one along the
+//    direction of travel (negative: overlapping canopies). Absent on the first record.
+//  - Mode Row (hedgerows, fruit walls): the records are canopy segments (start_m, end_m); a
+//    segment is what the frames' segments show as one continuous canopy; metrics' width (the
+//    extent in view) is not used, the record's width is end_m - start_m.
+#pragma once
+
+#include "treestereo/canopy.hpp"
+#include "treestereo/metrics.hpp"
+#include "treestereo/types.hpp"
+
+#include <cstddef>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace treestereo {
+
+struct TrackerParams {
+  CanopyMode mode = CanopyMode::Tree;
+  // Frames a track survives without a segment (a tree hidden by a sparse frame, a sprayer arm).
+  int grace_frames = 1;
+  // A segment end this close to the image edge's ray (mm, at the segment's front depth) is cut.
+  // About two point spacings of stereodepth's grid at 2 m (19 px at 1296 px wide ~ 25 mm).
+  double edge_margin_mm = 50;
+  // World extents are compared widened by this (mm): the travel estimate's error per frame and
+  // the limb's sampling. Below the smallest gap between trees (select_canopy's min_gap_mm is 80).
+  double match_tolerance_mm = 40;
+  // The direction of travel before the position has changed: +1 along +x (the renderer's), -1.
+  int forward = 1;
+};
+
+// Throws std::runtime_error naming the field when a value is out of range.
+void validate(const TrackerParams &params);
+
+// What one frame tells the tracker.
+struct TrackFrame {
+  double position_mm = 0;        // the rig's travel since the start, along the row (+x)
+  // Slopes x/z of the rays through the image's left and right edges (rectified left view):
+  // left < right; camera x of an edge at depth Z is slope * Z. See view_slopes().
+  double left_slope = 0, right_slope = 0;
+  std::vector<RowSegment> segments; // the near row's segments, left to right (CanopyResult)
+  // The tree in front's measurements (tree_present false: none) and the index into `segments`
+  // of the segment they describe (-1: none).
+  TreeMetrics metrics;
+  int measured_segment = -1;
+};
+
+// The edge rays' slopes of the left rectified view: (-0.5 - cx) / fx and (width - 0.5 - cx) / fx
+// (pixel centres at integers, so the image's outer pixel edges). Throws on an invalid geometry.
+void view_slopes(const StereoGeometry &geometry, double &left_slope, double &right_slope);
+
+// One band of a record: TreeMetrics' Band fused over the frames fully in view (median per value;
+// present when it was present in at least half of them). left_m / right_m are world positions
+// along the row; top_m / bottom_m as the frames have them (camera y, down).
+struct RecordBand {
+  bool present = false;
+  double top_m = 0, bottom_m = 0, left_m = 0, right_m = 0, width_m = 0, depth_m = 0, fill = 0;
+};
+
+struct TreeRecord {
+  int id = 0;                      // 1, 2, ... in the order the trees entered the view
+  CanopyMode mode = CanopyMode::Tree;
+  bool complete = false;           // both ends seen off the edge and a frame fully in view
+  bool start_seen = false, end_seen = false; // else start_m / end_m is the farthest seen
+  double position_m = 0;           // canopy centre along the row: (start_m + end_m) / 2
+  double start_m = 0, end_m = 0;   // canopy along the row, world x, start < end
+  bool has_height = false, has_width = false, has_depth = false; // has_depth: distance,
+                                                                 // thickness, bands, confidence
+  double height_m = 0, width_m = 0, distance_m = 0, thickness_m = 0;
+  std::vector<RecordBand> bands;
+  double confidence = 0;
+  int frames = 0;                  // frames fused: fully in view (mode Row: seen)
+  int frames_seen = 0;             // frames its segment was seen in
+  int height_frames = 0, width_frames = 0; // frames each extent's median is over
+  bool has_spacing = false;        // false on the first record
+  double spacing_m = 0, gap_m = 0; // to the previous record (see the top of this header)
+  bool lost = false;               // emitted because it was not seen for grace_frames + 1
+                                   // frames while still in view, not because it left
+};
+
+// One JSON line (no newline) with DESIGN.md's names: id, position_m, start_m, end_m,
+// distance_m, height_m, width_m, thickness_m, bands, frames, confidence, plus complete,
+// start_seen, end_seen, frames_seen, spacing_m, gap_m, lost, mode. A value the record lacks is
+// absent, never null.
+std::string to_json(const TreeRecord &record);
+
+class TreeTracker {
+public:
+  explicit TreeTracker(const TrackerParams &params = TrackerParams()); // validates
+
+  // Feeds one frame; returns the records of the trees that left the view (or were lost) with
+  // it, in the order they leave (along the direction of travel). Throws std::runtime_error on
+  // inconsistent input (slopes, a measured_segment out of range, non-finite values).
+  std::vector<TreeRecord> update(const TrackFrame &frame);
+
+  // Emits every track still open, in the order they would leave; the tracker is then empty
+  // (ids keep counting).
+  std::vector<TreeRecord> finish();
+
+  std::size_t open_tracks() const { return tracks_.size(); }
+  const TrackerParams &params() const { return params_; }
+
+  // The open tracks' ids and world extents (m), for display.
+  struct Open {
+    int id;
+    double start_m, end_m;
+  };
+  std::vector<Open> open() const;
+
+private:
+  struct Track {
+    int id = 0;
+    double lo_mm = 0, hi_mm = 0;         // world extent in the last frame it was seen
+    double min_lo_mm = 0, max_hi_mm = 0; // farthest seen over all frames
+    double near_mm = 0;                  // front depth in the last frame it was seen
+    std::vector<double> starts, ends;    // world extents of uncut sides
+    std::vector<double> heights, widths, distances, thicknesses, confidences;
+    std::vector<std::vector<RecordBand>> bands; // per frame fully in view
+    int frames_seen = 0, missed = 0;
+    bool lost = false;
+  };
+  std::vector<TreeRecord> emit(std::vector<Track> &done);
+
+  TrackerParams params_;
+  std::vector<Track> tracks_;
+  int next_id_ = 1;
+  int direction_ = 1;
+  bool has_position_ = false;
+  double last_position_mm_ = 0;
+  bool has_previous_ = false;
+  TreeRecord previous_;
+  // World extents (mm) of the last records: a segment appearing over one of them is what is left
+  // in view of a tree already emitted (a limb at the trailing edge), not a new tree.
+  std::vector<std::pair<double, double>> recent_;
+};
+
+} // namespace treestereo

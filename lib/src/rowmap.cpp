@@ -1,0 +1,437 @@
+#include "treestereo/rowmap.hpp"
+
+#include "treestereo/stats.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace treestereo {
+
+namespace {
+
+constexpr double kMmToM = 1e-3;
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+// Strips without points take the depth of the nearest strip with points within this many
+// strips; farther out, the canopy's median depth.
+constexpr int kStripReach = 6;
+
+void require(bool ok, const char *field, const char *range)
+{
+  if (!ok)
+    throw std::runtime_error(std::string("row map parameter ") + field + " out of range: " +
+                             range);
+}
+
+bool on_mask(const cv::Mat &mask, int u, int v)
+{
+  for (int dv = -1; dv <= 1; ++dv)
+    for (int du = -1; du <= 1; ++du) {
+      const int x = u + du, y = v + dv;
+      if (x >= 0 && y >= 0 && x < mask.cols && y < mask.rows && mask.at<uchar>(y, x))
+        return true;
+    }
+  return false;
+}
+
+std::string fixed(double v, int digits)
+{
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+} // namespace
+
+void validate(const RowMapParams &p)
+{
+  require(std::isfinite(p.bin_mm) && p.bin_mm >= 5 && p.bin_mm <= 2000, "bin_mm", "5 to 2000 mm");
+  if (p.band_edges_mm.empty()) {
+    require(p.n_bands >= 1 && p.n_bands <= 100, "n_bands", "1 to 100");
+    require(std::isfinite(p.min_height_mm) && p.min_height_mm >= -1000, "min_height_mm",
+            "finite, at least -1000 mm");
+    require(std::isfinite(p.max_height_mm) && p.max_height_mm > p.min_height_mm &&
+                p.max_height_mm <= 20000,
+            "max_height_mm", "above min_height_mm, at most 20000 mm");
+  } else {
+    require(p.band_edges_mm.size() >= 2 && p.band_edges_mm.size() <= 101, "band_edges_mm",
+            "2 to 101 edges");
+    for (std::size_t i = 0; i < p.band_edges_mm.size(); ++i) {
+      require(std::isfinite(p.band_edges_mm[i]) && p.band_edges_mm[i] >= -1000 &&
+                  p.band_edges_mm[i] <= 20000,
+              "band_edges_mm", "finite, -1000 to 20000 mm");
+      require(i == 0 || p.band_edges_mm[i] > p.band_edges_mm[i - 1], "band_edges_mm",
+              "strictly ascending");
+    }
+  }
+  require(p.min_fill >= 0 && p.min_fill <= 1, "min_fill", "0 to 1");
+  require(p.strip_px >= 1 && p.strip_px <= 256, "strip_px", "1 to 256 px");
+}
+
+GroundPlane rig_ground(const StereoGeometry &g, double camera_height_mm, double pitch_deg)
+{
+  if (!(camera_height_mm > 0) || !std::isfinite(camera_height_mm))
+    throw std::runtime_error("rig_ground: camera_height_mm must be above 0");
+  if (!(std::abs(pitch_deg) <= 80))
+    throw std::runtime_error("rig_ground: pitch_deg must be -80 to 80 degrees");
+  GroundPlane p;
+  const cv::Vec3d up_cam(0, -std::cos(pitch_deg * kDeg), -std::sin(pitch_deg * kDeg));
+  p.normal = g.R1 * up_cam;
+  p.d = camera_height_mm;
+  p.found = true;
+  return p;
+}
+
+RowMap::RowMap(const RowMapParams &params) : params_(params)
+{
+  validate(params_);
+  if (!params_.band_edges_mm.empty()) {
+    edges_ = params_.band_edges_mm;
+  } else {
+    for (int k = 0; k <= params_.n_bands; ++k)
+      edges_.push_back(params_.min_height_mm +
+                       (params_.max_height_mm - params_.min_height_mm) * k / params_.n_bands);
+  }
+}
+
+long RowMap::first_bin() const
+{
+  return bins_.empty() ? 0 : bins_.begin()->first;
+}
+
+long RowMap::last_bin() const
+{
+  return bins_.empty() ? -1 : bins_.rbegin()->first;
+}
+
+RowMapCell RowMap::cell(long bin, int band) const
+{
+  const auto it = bins_.find(bin);
+  if (it == bins_.end() || band < 0 || band >= n_bands())
+    return RowMapCell();
+  return it->second.cells[std::size_t(band)];
+}
+
+void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &points,
+                       const StereoGeometry &g, const GroundPlane &ground, double position_mm)
+{
+  if (!g.valid())
+    throw std::runtime_error("row map: the stereo geometry is not valid");
+  if (mask.type() != CV_8U || mask.size() != g.view_size)
+    throw std::runtime_error("row map: the canopy mask must be CV_8U of the view size " +
+                             std::to_string(g.view_size.width) + "x" +
+                             std::to_string(g.view_size.height));
+  if (!ground.found)
+    throw std::runtime_error("row map: a ground plane is needed (select_canopy's or rig_ground())");
+  if (!std::isfinite(position_mm))
+    throw std::runtime_error("row map: position_mm must be finite");
+
+  const int W = g.view_size.width, H = g.view_size.height;
+  const double fx = g.fx, fy = g.fy > 0 ? g.fy : g.fx, cx = g.cx[LEFT], cy = g.cy;
+  const int nb = n_bands();
+  const double lo_h = edges_.front(), hi_h = edges_.back();
+  auto band_of = [&](double h) {
+    if (!(h >= lo_h) || !(h < hi_h))
+      return -1;
+    return int(std::upper_bound(edges_.begin(), edges_.end(), h) - edges_.begin()) - 1;
+  };
+
+  // The canopy's points and the depth of each strip of columns.
+  struct Pt {
+    double x, z, h;
+    int u;
+  };
+  std::vector<Pt> pts;
+  for (const PixelPoint &q : points) {
+    if (!q.p.valid || !(q.p.z > 0) || !std::isfinite(q.p.x) || !std::isfinite(q.p.y) ||
+        !std::isfinite(q.px.x) || !std::isfinite(q.px.y))
+      continue;
+    const int u = int(std::lround(q.px.x)), v = int(std::lround(q.px.y));
+    if (u < 0 || v < 0 || u >= W || v >= H || !on_mask(mask, u, v))
+      continue;
+    const cv::Point3d P(q.p.x, q.p.y, q.p.z);
+    pts.push_back({P.x, P.z, ground.height_of(P), u});
+  }
+  if (pts.empty())
+    return; // no depth: where the canopy-free view lies along the row is unknown
+  std::vector<double> all_z;
+  for (const Pt &p : pts)
+    all_z.push_back(p.z);
+  const double row_z = median(all_z);
+
+  const int S = (W + params_.strip_px - 1) / params_.strip_px;
+  std::vector<std::vector<double>> strip_z(static_cast<std::size_t>(S));
+  for (const Pt &p : pts)
+    strip_z[std::size_t(p.u / params_.strip_px)].push_back(p.z);
+  std::vector<double> sz(std::size_t(S), -1);
+  for (int s = 0; s < S; ++s)
+    if (!strip_z[std::size_t(s)].empty())
+      sz[std::size_t(s)] = median(strip_z[std::size_t(s)]);
+  std::vector<double> col_z(static_cast<std::size_t>(W));
+  for (int s = 0; s < S; ++s) {
+    double z = sz[std::size_t(s)];
+    for (int d = 1; z < 0 && d <= kStripReach; ++d) {
+      if (s - d >= 0 && sz[std::size_t(s - d)] > 0)
+        z = sz[std::size_t(s - d)];
+      else if (s + d < S && sz[std::size_t(s + d)] > 0)
+        z = sz[std::size_t(s + d)];
+    }
+    if (z < 0)
+      z = row_z;
+    for (int u = s * params_.strip_px; u < std::min(W, (s + 1) * params_.strip_px); ++u)
+      col_z[std::size_t(u)] = z;
+  }
+
+  // Every pixel placed on the canopy's surface: counts per (bin, band).
+  const double bin = params_.bin_mm;
+  const double view_lo = (-0.5 - cx) / fx * col_z.front() + position_mm;
+  const double view_hi = (W - 0.5 - cx) / fx * col_z.back() + position_mm;
+  const long b0 = long(std::floor(view_lo / bin)), b1 = long(std::floor(view_hi / bin));
+  const long nbins = b1 - b0 + 1;
+  if (nbins <= 0 || nbins > 1000000)
+    return;
+  std::vector<int> total(std::size_t(nbins * nb), 0), canopy(std::size_t(nbins * nb), 0);
+  std::vector<double> min_z(std::size_t(nbins * nb), std::numeric_limits<double>::infinity());
+  for (int u = 0; u < W; ++u) {
+    const double z = col_z[std::size_t(u)];
+    const double X = (u - cx) / fx * z;
+    const long b = long(std::floor((X + position_mm) / bin)) - b0;
+    if (b < 0 || b >= nbins)
+      continue;
+    for (int v = 0; v < H; ++v) {
+      const double Y = (v - cy) / fy * z;
+      const int k = band_of(ground.height_of(cv::Point3d(X, Y, z)));
+      if (k < 0)
+        continue;
+      const std::size_t c = std::size_t(b * nb + k);
+      ++total[c];
+      if (mask.at<uchar>(v, u)) {
+        ++canopy[c];
+        min_z[c] = std::min(min_z[c], z);
+      }
+    }
+  }
+  std::vector<std::vector<double>> cell_z(std::size_t(nbins * nb));
+  for (const Pt &p : pts) {
+    const long b = long(std::floor((p.x + position_mm) / bin)) - b0;
+    const int k = band_of(p.h);
+    if (b >= 0 && b < nbins && k >= 0)
+      cell_z[std::size_t(b * nb + k)].push_back(p.z);
+  }
+
+  // Each bin the view holds whole, taken when this frame sees it nearer the image centre.
+  for (long b = 0; b < nbins; ++b) {
+    const double lo = double(b + b0) * bin, hi = lo + bin;
+    if (lo < view_lo || hi > view_hi)
+      continue;
+    const double offset = std::abs(0.5 * (lo + hi) - position_mm) / row_z;
+    auto it = bins_.find(b + b0);
+    if (it != bins_.end() && !(offset < it->second.centre_offset))
+      continue;
+    Bin out;
+    out.centre_offset = offset;
+    out.cells.resize(std::size_t(nb));
+    for (int k = 0; k < nb; ++k) {
+      const std::size_t c = std::size_t(b * nb + k);
+      RowMapCell &cell = out.cells[std::size_t(k)];
+      cell.seen = total[c] > 0;
+      if (!cell.seen)
+        continue;
+      cell.fill = double(canopy[c]) / total[c];
+      cell.present = canopy[c] > 0 && cell.fill >= params_.min_fill;
+      if (cell.present)
+        cell.distance_m =
+            (cell_z[c].empty() ? min_z[c] : percentile(cell_z[c], 5.0)) * kMmToM;
+    }
+    bins_[b + b0] = std::move(out);
+  }
+}
+
+void RowMap::write_csv(const std::string &path) const
+{
+  std::ofstream f(path);
+  if (!f)
+    throw std::runtime_error("row map: cannot write " + path + ": " + std::strerror(errno));
+  f << "position_m,band,present,distance_m,fill\n";
+  const int nb = n_bands();
+  for (long b = first_bin(); b <= last_bin(); ++b)
+    for (int k = 0; k < nb; ++k) {
+      const RowMapCell c = cell(b, k);
+      f << fixed((double(b) + 0.5) * params_.bin_mm * kMmToM, 4) << ',' << k << ','
+        << (c.present ? 1 : 0) << ',' << (c.present ? fixed(c.distance_m, 4) : std::string())
+        << ',' << fixed(c.fill, 4) << '\n';
+    }
+  f.flush();
+  if (!f)
+    throw std::runtime_error("row map: writing " + path + " failed: " + std::strerror(errno));
+}
+
+cv::Size RowMap::render_size(const RowMapRenderParams &r) const
+{
+  const long bins = bins_.empty() ? 0 : last_bin() - first_bin() + 1;
+  const double top_m = std::max(0.0, edges_.back() * kMmToM);
+  return {kMarginLeft + int(bins) * r.px_per_bin + kMarginRight,
+          kMarginTop + int(std::lround(top_m * r.px_per_m_height)) + kMarginBottom};
+}
+
+cv::Mat RowMap::render(const std::vector<TreeRecord> &trees, const RowMapRenderParams &r) const
+{
+  if (r.px_per_bin < 1 || r.px_per_bin > 100)
+    throw std::runtime_error("row map render parameter px_per_bin out of range: 1 to 100");
+  if (!(r.px_per_m_height >= 10) || !(r.px_per_m_height <= 2000))
+    throw std::runtime_error("row map render parameter px_per_m_height out of range: 10 to 2000");
+  if (!std::isfinite(r.distance_min_m) || !std::isfinite(r.distance_max_m) ||
+      r.distance_min_m < 0 || r.distance_max_m < r.distance_min_m)
+    throw std::runtime_error("row map render parameter distance_min_m / distance_max_m out of "
+                             "range: 0 <= min <= max");
+  const cv::Size size = render_size(r);
+  if (double(size.width) * size.height > 2.5e8)
+    throw std::runtime_error("row map: the picture would be too large; lower px_per_bin");
+  cv::Mat img(size, CV_8UC3, cv::Scalar(255, 255, 255));
+  const int nb = n_bands();
+  const long b0 = first_bin(), nbins = bins_.empty() ? 0 : last_bin() - b0 + 1;
+  const int ground_y = size.height - kMarginBottom;
+  auto y_of = [&](double h_mm) {
+    return ground_y - int(std::lround(h_mm * kMmToM * r.px_per_m_height));
+  };
+  auto x_of_m = [&](double x_m) {
+    return kMarginLeft +
+           int(std::lround((x_m * 1000.0 / params_.bin_mm - double(b0)) * r.px_per_bin));
+  };
+  const int font = cv::FONT_HERSHEY_SIMPLEX;
+  const cv::Scalar ink(30, 30, 30);
+
+  // The distance scale.
+  double dmin = r.distance_min_m, dmax = r.distance_max_m;
+  if (dmin == 0 && dmax == 0) {
+    dmin = std::numeric_limits<double>::infinity();
+    dmax = -dmin;
+    for (const auto &bn : bins_)
+      for (const RowMapCell &c : bn.second.cells)
+        if (c.present) {
+          dmin = std::min(dmin, c.distance_m);
+          dmax = std::max(dmax, c.distance_m);
+        }
+    if (!std::isfinite(dmin)) {
+      dmin = 0;
+      dmax = 1;
+    }
+  }
+  if (dmax - dmin < 0.05) { // a flat row: a scale of at least 5 cm around it
+    const double mid = 0.5 * (dmin + dmax);
+    dmin = std::max(0.0, mid - 0.025);
+    dmax = dmin + 0.05;
+  }
+  cv::Mat ramp(1, 256, CV_8U), lut;
+  for (int i = 0; i < 256; ++i)
+    ramp.at<uchar>(0, i) = uchar(i);
+  cv::applyColorMap(ramp, lut, cv::COLORMAP_TURBO);
+  auto colour = [&](double d) {
+    const int i = std::clamp(int(std::lround((d - dmin) / (dmax - dmin) * 255.0)), 0, 255);
+    const cv::Vec3b c = lut.at<cv::Vec3b>(0, i);
+    return cv::Scalar(c[0], c[1], c[2]);
+  };
+
+  // The plot area: unseen black, then each band of each bin.
+  cv::rectangle(img, cv::Point(kMarginLeft, y_of(edges_.back())),
+                cv::Point(kMarginLeft + int(nbins) * r.px_per_bin - 1, y_of(edges_.front()) - 1),
+                cv::Scalar(0, 0, 0), cv::FILLED);
+  for (const auto &bn : bins_) {
+    const int x0 = kMarginLeft + int(bn.first - b0) * r.px_per_bin;
+    for (int k = 0; k < nb; ++k) {
+      const RowMapCell &c = bn.second.cells[std::size_t(k)];
+      if (!c.seen)
+        continue;
+      const cv::Scalar fill = c.present ? colour(c.distance_m) : cv::Scalar(60, 60, 60);
+      cv::rectangle(img, cv::Point(x0, y_of(edges_[std::size_t(k) + 1])),
+                    cv::Point(x0 + r.px_per_bin - 1, y_of(edges_[std::size_t(k)]) - 1), fill,
+                    cv::FILLED);
+    }
+  }
+  // Band edges and the ground.
+  for (double e : edges_) {
+    cv::line(img, cv::Point(kMarginLeft - 4, y_of(e)),
+             cv::Point(kMarginLeft + int(nbins) * r.px_per_bin - 1, y_of(e)),
+             cv::Scalar(150, 150, 150), 1);
+    cv::putText(img, fixed(e * kMmToM, 2) + " m", cv::Point(4, y_of(e) + 4), font, 0.4, ink, 1,
+                cv::LINE_AA);
+  }
+  cv::line(img, cv::Point(kMarginLeft, ground_y), cv::Point(size.width - kMarginRight, ground_y),
+           cv::Scalar(40, 90, 140), 2);
+  cv::putText(img, "ground", cv::Point(4, ground_y + 4), font, 0.4, ink, 1, cv::LINE_AA);
+  // Travel ticks every metre.
+  if (nbins > 0) {
+    const double from_m = double(b0) * params_.bin_mm * kMmToM;
+    const double to_m = double(b0 + nbins) * params_.bin_mm * kMmToM;
+    for (double m = std::ceil(from_m); m <= to_m; m += 1.0) {
+      const int x = x_of_m(m);
+      cv::line(img, cv::Point(x, ground_y), cv::Point(x, ground_y + 5), ink, 1);
+      cv::putText(img, std::to_string(std::lround(m)), cv::Point(x - 4, ground_y + 18), font,
+                  0.4, ink, 1, cv::LINE_AA);
+    }
+    cv::putText(img, "travel (m)", cv::Point(size.width - kMarginRight - 75, ground_y + 18),
+                font, 0.4, ink, 1, cv::LINE_AA);
+  }
+  // The trees: extent as a bracket above the map, id above its position.
+  const double map_lo_m = double(b0) * params_.bin_mm * kMmToM;
+  const double map_hi_m = double(b0 + nbins) * params_.bin_mm * kMmToM;
+  for (const TreeRecord &t : trees) {
+    if (t.end_m < map_lo_m || t.start_m > map_hi_m) // not on this map
+      continue;
+    const int xs = x_of_m(t.start_m), xe = x_of_m(t.end_m), xc = x_of_m(t.position_m);
+    const int y = kMarginTop - 10;
+    const cv::Scalar c = t.complete ? cv::Scalar(20, 120, 20) : cv::Scalar(0, 100, 200);
+    cv::line(img, cv::Point(xs, y), cv::Point(xe, y), c, 2);
+    cv::line(img, cv::Point(xs, y - 5), cv::Point(xs, y + 5), c, 1);
+    cv::line(img, cv::Point(xe, y - 5), cv::Point(xe, y + 5), c, 1);
+    cv::putText(img, std::to_string(t.id), cv::Point(xc - 4, y - 10), font, 0.45, c, 1,
+                cv::LINE_AA);
+  }
+  // The distance scale bar.
+  const int bar_y = ground_y + 32, bar_h = 12, bar_w = std::min(256, size.width - kMarginLeft - 90);
+  if (bar_w > 16) {
+    for (int i = 0; i < bar_w; ++i)
+      cv::line(img, cv::Point(kMarginLeft + i, bar_y), cv::Point(kMarginLeft + i, bar_y + bar_h),
+               colour(dmin + (dmax - dmin) * i / (bar_w - 1)), 1);
+    cv::putText(img, fixed(dmin, 2), cv::Point(kMarginLeft, bar_y + bar_h + 14), font, 0.4, ink,
+                1, cv::LINE_AA);
+    cv::putText(img, fixed(dmax, 2) + " m distance", cv::Point(kMarginLeft + bar_w - 20,
+                bar_y + bar_h + 14), font, 0.4, ink, 1, cv::LINE_AA);
+  }
+  // The other two cell kinds: seen without canopy, never seen.
+  cv::putText(img, "empty", cv::Point(4, bar_y + 10), font, 0.35, ink, 1, cv::LINE_AA);
+  cv::rectangle(img, cv::Point(44, bar_y), cv::Point(56, bar_y + bar_h), cv::Scalar(60, 60, 60),
+                cv::FILLED);
+  cv::putText(img, "unseen", cv::Point(4, bar_y + 30), font, 0.35, ink, 1, cv::LINE_AA);
+  cv::rectangle(img, cv::Point(44, bar_y + 20), cv::Point(56, bar_y + 20 + bar_h),
+                cv::Scalar(0, 0, 0), cv::FILLED);
+  return img;
+}
+
+void RowMap::write_png(const std::string &path, const std::vector<TreeRecord> &trees,
+                       const RowMapRenderParams &r) const
+{
+  if (bins_.empty())
+    throw std::runtime_error("row map: nothing to write to " + path + ": no frame added a bin");
+  const cv::Mat img = render(trees, r);
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path, img);
+  } catch (const cv::Exception &e) {
+    throw std::runtime_error("row map: cannot write " + path + ": " + e.what());
+  }
+  if (!ok)
+    throw std::runtime_error("row map: cannot write " + path +
+                             " (no such directory, no permission or an unknown extension)");
+}
+
+} // namespace treestereo

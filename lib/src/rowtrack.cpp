@@ -1,0 +1,472 @@
+#include "treestereo/rowtrack.hpp"
+
+#include "treestereo/json.hpp"
+#include "treestereo/stats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+namespace treestereo {
+
+namespace {
+
+constexpr double kMmToM = 1e-3;
+constexpr std::size_t kRecent = 4;
+
+void require(bool ok, const char *field, const char *range)
+{
+  if (!ok)
+    throw std::runtime_error(std::string("tree tracker parameter ") + field +
+                             " out of range: " + range);
+}
+
+void check_frame(const TrackFrame &f)
+{
+  if (!std::isfinite(f.position_mm))
+    throw std::runtime_error("tree tracker: position_mm must be finite");
+  if (!std::isfinite(f.left_slope) || !std::isfinite(f.right_slope) ||
+      !(f.left_slope < f.right_slope))
+    throw std::runtime_error("tree tracker: the view's edge slopes must be finite with "
+                             "left_slope < right_slope (see view_slopes())");
+  if (f.measured_segment < -1 || f.measured_segment >= int(f.segments.size()))
+    throw std::runtime_error("tree tracker: measured_segment " +
+                             std::to_string(f.measured_segment) + " is not an index into the " +
+                             std::to_string(f.segments.size()) + " segments");
+  for (const RowSegment &s : f.segments)
+    if (!std::isfinite(s.lo_mm) || !std::isfinite(s.hi_mm) || s.hi_mm < s.lo_mm ||
+        !std::isfinite(s.near_mm) || !(s.near_mm > 0))
+      throw std::runtime_error("tree tracker: a segment needs finite lo_mm <= hi_mm and a "
+                               "near_mm above 0");
+}
+
+double median_of(std::vector<double> v)
+{
+  return median(v);
+}
+
+// Overlap length of [a0, a1] and [b0, b1] (negative: the gap between them).
+double overlap(double a0, double a1, double b0, double b1)
+{
+  return std::min(a1, b1) - std::max(a0, b0);
+}
+
+std::vector<RecordBand> fuse_bands(const std::vector<std::vector<RecordBand>> &frames)
+{
+  std::vector<RecordBand> out;
+  if (frames.empty())
+    return out;
+  const std::size_t n = frames.front().size();
+  out.resize(n);
+  for (std::size_t b = 0; b < n; ++b) {
+    std::vector<double> top, bottom, left, right, width, depth, fill;
+    std::size_t count = 0;
+    for (const auto &f : frames) {
+      if (f.size() != n)
+        continue;
+      ++count;
+      const RecordBand &x = f[b];
+      if (!x.present)
+        continue;
+      top.push_back(x.top_m);
+      bottom.push_back(x.bottom_m);
+      left.push_back(x.left_m);
+      right.push_back(x.right_m);
+      width.push_back(x.width_m);
+      depth.push_back(x.depth_m);
+      fill.push_back(x.fill);
+    }
+    RecordBand &o = out[b];
+    o.present = !top.empty() && 2 * top.size() >= count;
+    if (!o.present)
+      continue;
+    o.top_m = median(top);
+    o.bottom_m = median(bottom);
+    o.left_m = median(left);
+    o.right_m = median(right);
+    o.width_m = median(width);
+    o.depth_m = median(depth);
+    o.fill = median(fill);
+  }
+  return out;
+}
+
+} // namespace
+
+void validate(const TrackerParams &p)
+{
+  require(p.grace_frames >= 0 && p.grace_frames <= 1000, "grace_frames", "0 to 1000");
+  require(p.edge_margin_mm >= 0 && p.edge_margin_mm <= 1000, "edge_margin_mm", "0 to 1000 mm");
+  require(p.match_tolerance_mm >= 0 && p.match_tolerance_mm <= 2000, "match_tolerance_mm",
+          "0 to 2000 mm");
+  require(p.forward == 1 || p.forward == -1, "forward", "+1 or -1");
+}
+
+void view_slopes(const StereoGeometry &g, double &left_slope, double &right_slope)
+{
+  if (!g.valid())
+    throw std::runtime_error("view_slopes: the stereo geometry is not valid");
+  left_slope = (-0.5 - g.cx[LEFT]) / g.fx;
+  right_slope = (g.view_size.width - 0.5 - g.cx[LEFT]) / g.fx;
+}
+
+std::string to_json(const TreeRecord &r)
+{
+  std::ostringstream s;
+  JsonWriter w(s);
+  w.begin_object()
+      .field("id", r.id)
+      .field("mode", canopy_mode_name(r.mode))
+      .field("complete", r.complete)
+      .field("position_m", r.position_m)
+      .field("start_m", r.start_m)
+      .field("end_m", r.end_m)
+      .field("start_seen", r.start_seen)
+      .field("end_seen", r.end_seen);
+  if (r.has_depth)
+    w.field("distance_m", r.distance_m);
+  if (r.has_height)
+    w.field("height_m", r.height_m);
+  if (r.has_width)
+    w.field("width_m", r.width_m);
+  if (r.has_depth) {
+    w.field("thickness_m", r.thickness_m);
+    w.key("bands").begin_array();
+    for (const RecordBand &b : r.bands) {
+      w.begin_object().field("present", b.present);
+      if (b.present)
+        w.field("top_m", b.top_m)
+            .field("bottom_m", b.bottom_m)
+            .field("left_m", b.left_m)
+            .field("right_m", b.right_m)
+            .field("width_m", b.width_m)
+            .field("depth_m", b.depth_m)
+            .field("fill", b.fill);
+      w.end_object();
+    }
+    w.end_array();
+  }
+  w.field("frames", r.frames).field("frames_seen", r.frames_seen);
+  if (r.has_depth)
+    w.field("confidence", r.confidence);
+  if (r.has_spacing)
+    w.field("spacing_m", r.spacing_m).field("gap_m", r.gap_m);
+  w.field("lost", r.lost).end_object();
+  return s.str();
+}
+
+TreeTracker::TreeTracker(const TrackerParams &params) : params_(params)
+{
+  validate(params_);
+  direction_ = params_.forward;
+}
+
+std::vector<TreeTracker::Open> TreeTracker::open() const
+{
+  std::vector<Open> out;
+  for (const Track &t : tracks_)
+    out.push_back({t.id, t.min_lo_mm * kMmToM, t.max_hi_mm * kMmToM});
+  return out;
+}
+
+std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
+{
+  check_frame(f);
+  const double pos = f.position_mm;
+  if (has_position_ && std::abs(pos - last_position_mm_) > 0.5)
+    direction_ = pos > last_position_mm_ ? 1 : -1;
+  has_position_ = true;
+  last_position_mm_ = pos;
+
+  const bool row = params_.mode == CanopyMode::Row;
+  const double tol = params_.match_tolerance_mm;
+  const std::size_t ns = f.segments.size(), nt = tracks_.size();
+
+  // The segments in world x and whether the image edge cuts them.
+  struct Seg {
+    double lo, hi;
+    bool cut_lo, cut_hi;
+  };
+  std::vector<Seg> segs(ns);
+  for (std::size_t i = 0; i < ns; ++i) {
+    const RowSegment &s = f.segments[i];
+    segs[i] = {s.lo_mm + pos, s.hi_mm + pos,
+               s.lo_mm <= f.left_slope * s.near_mm + params_.edge_margin_mm,
+               s.hi_mm >= f.right_slope * s.near_mm - params_.edge_margin_mm};
+  }
+  auto ov = [&](std::size_t i, std::size_t t) {
+    return overlap(segs[i].lo, segs[i].hi, tracks_[t].lo_mm - tol, tracks_[t].hi_mm + tol);
+  };
+
+  // Which segments each track is seen in.
+  std::vector<std::vector<std::size_t>> obs(nt);
+  std::vector<bool> seg_used(ns, false), kept_alive(nt, false);
+  if (!row)
+    for (std::size_t i = 0; i < ns; ++i) {
+      std::vector<std::size_t> over;
+      for (std::size_t t = 0; t < nt; ++t)
+        if (ov(i, t) > 0)
+          over.push_back(t);
+      if (over.size() < 2)
+        continue;
+      // Two trees seen as one: neither's extent nor measurement is trusted this frame.
+      seg_used[i] = true;
+      for (std::size_t t : over)
+        kept_alive[t] = true;
+    }
+  struct Pair {
+    double overlap;
+    std::size_t seg, track;
+  };
+  std::vector<Pair> pairs;
+  for (std::size_t i = 0; i < ns; ++i)
+    for (std::size_t t = 0; t < nt; ++t)
+      if (!seg_used[i] && !kept_alive[t] && ov(i, t) > 0)
+        pairs.push_back({ov(i, t), i, t});
+  std::stable_sort(pairs.begin(), pairs.end(),
+                   [](const Pair &a, const Pair &b) { return a.overlap > b.overlap; });
+  std::vector<bool> track_taken(nt, false);
+  for (const Pair &p : pairs)
+    if (!seg_used[p.seg] && !track_taken[p.track]) {
+      seg_used[p.seg] = track_taken[p.track] = true;
+      obs[p.track].push_back(p.seg);
+    }
+  // A segment left over on a track taken this frame: more of that tree (a sparse frame split
+  // it) or, mode Row, more of the same canopy.
+  std::vector<std::size_t> fresh;
+  for (std::size_t i = 0; i < ns; ++i) {
+    if (seg_used[i])
+      continue;
+    double best = 0;
+    std::size_t best_t = nt;
+    for (std::size_t t = 0; t < nt; ++t)
+      if (track_taken[t] && ov(i, t) > best) {
+        best = ov(i, t);
+        best_t = t;
+      }
+    if (best_t < nt)
+      obs[best_t].push_back(i);
+    else
+      fresh.push_back(i);
+  }
+
+  // New tracks: trees entering the view. A segment over a tree just emitted is its remnant.
+  for (std::size_t i : fresh) {
+    bool remnant = false;
+    for (const auto &e : recent_)
+      remnant = remnant || overlap(segs[i].lo, segs[i].hi, e.first - tol, e.second + tol) > 0;
+    if (remnant)
+      continue;
+    Track k;
+    k.id = next_id_++;
+    k.lo_mm = k.min_lo_mm = segs[i].lo;
+    k.hi_mm = k.max_hi_mm = segs[i].hi;
+    tracks_.push_back(std::move(k));
+    obs.push_back({i});
+    kept_alive.push_back(false);
+  }
+
+  // Update the tracks seen.
+  const TreeMetrics &m = f.metrics;
+  for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    Track &k = tracks_[t];
+    if (kept_alive[t]) {
+      k.missed = 0;
+      continue;
+    }
+    if (obs[t].empty()) {
+      ++k.missed;
+      continue;
+    }
+    double lo = segs[obs[t].front()].lo, hi = segs[obs[t].front()].hi;
+    bool cut_lo = segs[obs[t].front()].cut_lo, cut_hi = segs[obs[t].front()].cut_hi;
+    double near = f.segments[obs[t].front()].near_mm;
+    bool measured = false;
+    for (std::size_t i : obs[t]) {
+      if (segs[i].lo < lo) {
+        lo = segs[i].lo;
+        cut_lo = segs[i].cut_lo;
+      }
+      if (segs[i].hi > hi) {
+        hi = segs[i].hi;
+        cut_hi = segs[i].cut_hi;
+      }
+      near = std::min(near, f.segments[i].near_mm);
+      measured = measured || int(i) == f.measured_segment;
+    }
+    // Mode Row: a canopy reaching past an end already seen off the edge has met the next one
+    // (touching canopies); that end was none.
+    if (row && hi > k.max_hi_mm + tol)
+      k.ends.clear();
+    if (row && lo < k.min_lo_mm - tol)
+      k.starts.clear();
+    k.lo_mm = lo;
+    k.hi_mm = hi;
+    k.min_lo_mm = std::min(k.min_lo_mm, lo);
+    k.max_hi_mm = std::max(k.max_hi_mm, hi);
+    k.near_mm = near;
+    if (!cut_lo)
+      k.starts.push_back(lo);
+    if (!cut_hi)
+      k.ends.push_back(hi);
+    ++k.frames_seen;
+    k.missed = 0;
+    // The measurement counts when it is of this tree whole: mode Tree, a tree split over
+    // several segments this frame was measured on one part only.
+    if (!measured || !m.tree_present || (!row && obs[t].size() > 1))
+      continue;
+    const Clipped &c = m.clipped;
+    if (!c.top && !c.bottom) {
+      k.heights.push_back(m.height_m);
+    }
+    if (row || c.left || c.right || cut_lo || cut_hi)
+      ; // width: mode Row has none (the extent in view); a cut or clipped side is a lower bound
+    else
+      k.widths.push_back(m.width_m);
+    if (c.any() || cut_lo || cut_hi)
+      continue;
+    k.distances.push_back(m.distance_m);
+    k.thicknesses.push_back(m.thickness_m);
+    k.confidences.push_back(m.confidence);
+    std::vector<RecordBand> bands;
+    for (const Band &b : m.bands) {
+      RecordBand r;
+      r.present = b.present;
+      r.top_m = b.top_m;
+      r.bottom_m = b.bottom_m;
+      r.left_m = b.left_m + pos * kMmToM;
+      r.right_m = b.right_m + pos * kMmToM;
+      r.width_m = b.width_m;
+      r.depth_m = b.depth_m;
+      r.fill = b.fill;
+      bands.push_back(r);
+    }
+    k.bands.push_back(std::move(bands));
+  }
+
+  // Mode Row: canopies that now overlap are one (a segment reached across to the next track).
+  if (row && tracks_.size() > 1) {
+    std::sort(tracks_.begin(), tracks_.end(),
+              [](const Track &a, const Track &b) { return a.min_lo_mm < b.min_lo_mm; });
+    std::vector<Track> merged;
+    for (Track &k : tracks_) {
+      if (!merged.empty() && k.min_lo_mm <= merged.back().max_hi_mm) {
+        Track &a = merged.back();
+        const bool k_ends = k.max_hi_mm > a.max_hi_mm;
+        if (k_ends) {
+          a.ends = std::move(k.ends);
+          a.max_hi_mm = k.max_hi_mm;
+          a.hi_mm = std::max(a.hi_mm, k.hi_mm);
+        }
+        a.lo_mm = std::min(a.lo_mm, k.lo_mm);
+        a.id = std::min(a.id, k.id);
+        a.near_mm = std::min(a.near_mm, k.near_mm);
+        auto append = [](std::vector<double> &x, const std::vector<double> &y) {
+          x.insert(x.end(), y.begin(), y.end());
+        };
+        append(a.heights, k.heights);
+        append(a.distances, k.distances);
+        append(a.thicknesses, k.thicknesses);
+        append(a.confidences, k.confidences);
+        a.bands.insert(a.bands.end(), k.bands.begin(), k.bands.end());
+        a.frames_seen = std::max(a.frames_seen, k.frames_seen);
+        a.missed = std::min(a.missed, k.missed);
+        continue;
+      }
+      merged.push_back(std::move(k));
+    }
+    tracks_ = std::move(merged);
+  }
+
+  // Emit the tracks that left the view behind (their side that leaves last is past the
+  // trailing edge at their front depth) or were lost.
+  std::vector<Track> done, keep;
+  for (Track &k : tracks_) {
+    const bool behind =
+        k.missed > 0 && (direction_ > 0 ? k.max_hi_mm < pos + f.left_slope * k.near_mm
+                                        : k.min_lo_mm > pos + f.right_slope * k.near_mm);
+    if (behind) {
+      done.push_back(std::move(k));
+    } else if (k.missed > params_.grace_frames) {
+      k.lost = true;
+      done.push_back(std::move(k));
+    } else {
+      keep.push_back(std::move(k));
+    }
+  }
+  tracks_ = std::move(keep);
+  return emit(done);
+}
+
+std::vector<TreeRecord> TreeTracker::finish()
+{
+  std::vector<Track> done = std::move(tracks_);
+  tracks_.clear();
+  return emit(done);
+}
+
+std::vector<TreeRecord> TreeTracker::emit(std::vector<Track> &done)
+{
+  // In the order they leave: the lowest world x first when driving along +x.
+  const int dir = direction_;
+  std::sort(done.begin(), done.end(), [dir](const Track &a, const Track &b) {
+    return dir > 0 ? a.max_hi_mm < b.max_hi_mm : a.min_lo_mm > b.min_lo_mm;
+  });
+  const bool row = params_.mode == CanopyMode::Row;
+  std::vector<TreeRecord> out;
+  for (const Track &k : done) {
+    TreeRecord r;
+    r.id = k.id;
+    r.mode = params_.mode;
+    r.lost = k.lost;
+    r.start_seen = !k.starts.empty();
+    r.end_seen = !k.ends.empty();
+    r.start_m = (r.start_seen ? median_of(k.starts) : k.min_lo_mm) * kMmToM;
+    r.end_m = (r.end_seen ? median_of(k.ends) : k.max_hi_mm) * kMmToM;
+    if (r.end_m < r.start_m) // a median pair of a tree seen at both ends in different frames
+      std::swap(r.start_m, r.end_m);
+    r.position_m = 0.5 * (r.start_m + r.end_m);
+    r.frames_seen = k.frames_seen;
+    r.height_frames = int(k.heights.size());
+    r.has_height = !k.heights.empty();
+    if (r.has_height)
+      r.height_m = median_of(k.heights);
+    if (row) {
+      r.has_width = r.start_seen && r.end_seen;
+      r.width_m = r.end_m - r.start_m;
+      r.width_frames = r.has_width ? int(std::min(k.starts.size(), k.ends.size())) : 0;
+    } else {
+      r.width_frames = int(k.widths.size());
+      r.has_width = !k.widths.empty();
+      if (r.has_width)
+        r.width_m = median_of(k.widths);
+    }
+    r.has_depth = !k.distances.empty();
+    if (r.has_depth) {
+      r.distance_m = median_of(k.distances);
+      r.thickness_m = median_of(k.thicknesses);
+      r.confidence = median_of(k.confidences);
+      r.bands = fuse_bands(k.bands);
+    }
+    r.frames = row ? k.frames_seen : int(k.distances.size());
+    r.complete = r.start_seen && r.end_seen && (row || r.has_depth);
+    if (has_previous_) {
+      r.has_spacing = true;
+      r.spacing_m = std::abs(r.position_m - previous_.position_m);
+      r.gap_m = dir > 0 ? r.start_m - previous_.end_m : previous_.start_m - r.end_m;
+    }
+    previous_ = r;
+    has_previous_ = true;
+    if (!k.lost) { // a lost tree may come back into sight: it is then a new track
+      recent_.emplace_back(k.min_lo_mm, k.max_hi_mm);
+      if (recent_.size() > kRecent)
+        recent_.erase(recent_.begin());
+    }
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+} // namespace treestereo

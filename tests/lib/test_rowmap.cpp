@@ -1,0 +1,295 @@
+// The row map against a constructed row: flat canopies of known extent (along the row and in
+// height) and depth, a 10 cm gap between two of them, seen by a level camera 950 mm above the
+// ground while the rig drives by. Masks and points are cast exactly; the map must give the
+// cells' truth.
+#include "treestereo/rowmap.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+using namespace treestereo;
+
+namespace {
+
+StereoGeometry camera()
+{
+  StereoGeometry g;
+  g.view_size = cv::Size(1296, 972);
+  g.fx = g.fy = 1100;
+  g.cx[LEFT] = g.cx[RIGHT] = 648;
+  g.cy = 486;
+  g.baseline_mm = 50;
+  return g;
+}
+
+constexpr double kCameraHeight = 950;
+
+// A flat canopy facing the camera: world x [x0, x1], height above the ground [h0, h1], depth z.
+struct Wall {
+  double x0, x1, h0, h1, z;
+};
+
+// Canopy A 1.0-1.6 m at 2 m, a 10 cm gap, canopy B 1.7-2.3 m at 2.2 m, a 0.5 m gap, canopy C
+// 2.8-3.3 m at 1.9 m (all bin edges of 50 mm bins, so each bin is wholly in or out).
+const std::vector<Wall> kWalls = {{1000, 1600, 500, 1450, 2000},
+                                  {1700, 2300, 700, 1300, 2200},
+                                  {2800, 3300, 600, 1600, 1900}};
+
+struct View {
+  cv::Mat mask;
+  std::vector<PixelPoint> points;
+};
+
+View cast(const StereoGeometry &g, const std::vector<Wall> &walls, double position_mm)
+{
+  View out;
+  out.mask = cv::Mat::zeros(g.view_size, CV_8U);
+  for (int v = 0; v < g.view_size.height; ++v)
+    for (int u = 0; u < g.view_size.width; ++u) {
+      const double tx = (u - g.cx[LEFT]) / g.fx, ty = (v - g.cy) / g.fy;
+      for (const Wall &w : walls) { // nearest first is not needed: they do not overlap in x
+        const double X = tx * w.z, Y = ty * w.z, x = X + position_mm, h = kCameraHeight - Y;
+        if (x < w.x0 || x >= w.x1 || h < w.h0 || h >= w.h1) // half open, as the bins
+          continue;
+        out.mask.at<uchar>(v, u) = 255;
+        if (u % 10 == 0 && v % 10 == 0) {
+          PixelPoint p;
+          p.px = cv::Point2f(float(u), float(v));
+          p.p.x = float(X);
+          p.p.y = float(Y);
+          p.p.z = float(w.z);
+          out.points.push_back(p);
+        }
+        break;
+      }
+    }
+  return out;
+}
+
+GroundPlane level_ground()
+{
+  GroundPlane p;
+  p.found = true;
+  p.normal = cv::Vec3d(0, -1, 0);
+  p.d = kCameraHeight;
+  return p;
+}
+
+// The true fill of a bin's band: the share of its height the wall covers, when the wall covers
+// the bin along the row.
+double true_fill(long bin, int band, double *distance_m)
+{
+  const double x0 = bin * 50.0, x1 = x0 + 50.0;
+  const double b0 = 400 + 300 * band, b1 = b0 + 300;
+  for (const Wall &w : kWalls)
+    if (x0 >= w.x0 && x1 <= w.x1) {
+      const double cover = std::max(0.0, std::min(b1, w.h1) - std::max(b0, w.h0));
+      *distance_m = w.z / 1000.0;
+      return cover / 300.0;
+    }
+  *distance_m = 0;
+  return 0;
+}
+
+RowMap build(double step_mm = 100)
+{
+  const StereoGeometry g = camera();
+  RowMap map;
+  for (double pos = 0; pos <= 4000; pos += step_mm) {
+    const View v = cast(g, kWalls, pos);
+    map.add_frame(v.mask, v.points, g, level_ground(), pos);
+  }
+  return map;
+}
+
+std::vector<TreeRecord> trees()
+{
+  std::vector<TreeRecord> out;
+  for (std::size_t i = 0; i < kWalls.size(); ++i) {
+    TreeRecord r;
+    r.id = int(i) + 1;
+    r.start_m = kWalls[i].x0 / 1000.0;
+    r.end_m = kWalls[i].x1 / 1000.0;
+    r.position_m = 0.5 * (r.start_m + r.end_m);
+    r.complete = true;
+    out.push_back(r);
+  }
+  return out;
+}
+
+} // namespace
+
+TEST(RowMap, DefaultBands)
+{
+  RowMap map;
+  ASSERT_EQ(map.n_bands(), 4);
+  EXPECT_DOUBLE_EQ(map.band_edges_mm().front(), 400);
+  EXPECT_DOUBLE_EQ(map.band_edges_mm()[1], 700);
+  EXPECT_DOUBLE_EQ(map.band_edges_mm().back(), 1600);
+}
+
+TEST(RowMap, CellsMatchTheConstructedRow)
+{
+  const RowMap map = build();
+  ASSERT_FALSE(map.empty());
+  int checked = 0, present = 0;
+  for (long b = 10; b < 75; ++b) // 0.5 to 3.75 m: every bin some frame sees near the centre
+    for (int k = 0; k < 4; ++k) {
+      SCOPED_TRACE("bin " + std::to_string(b) + " band " + std::to_string(k));
+      double d = 0;
+      const double fill = true_fill(b, k, &d);
+      const RowMapCell c = map.cell(b, k);
+      ASSERT_TRUE(c.seen);
+      EXPECT_NEAR(c.fill, fill, 0.03);
+      EXPECT_EQ(c.present, fill > 0);
+      if (fill > 0) {
+        EXPECT_NEAR(c.distance_m, d, 0.001);
+        ++present;
+      }
+      ++checked;
+    }
+  EXPECT_EQ(checked, 65 * 4);
+  EXPECT_EQ(present, 12 * 4 + 12 * 2 + 10 * 4);
+  // The 10 cm gap (bins 32 and 33, 1.60-1.70 m) is empty in every band.
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_FALSE(map.cell(32, k).present);
+    EXPECT_FALSE(map.cell(33, k).present);
+  }
+}
+
+TEST(RowMap, GapShowsAtFasterTravelToo)
+{
+  // 2 m/s at 7 frames/s: 286 mm a frame.
+  const RowMap map = build(2000.0 / 7.0);
+  for (int k = 1; k < 3; ++k) {
+    EXPECT_TRUE(map.cell(31, k).present);
+    EXPECT_FALSE(map.cell(32, k).present);
+    EXPECT_FALSE(map.cell(33, k).present);
+    EXPECT_TRUE(map.cell(34, k).present);
+  }
+}
+
+TEST(RowMap, NearestTheCentreWins)
+{
+  const StereoGeometry g = camera();
+  RowMap map;
+  // The row seen straight on at 1.3 m, then a frame at 2.5 m whose left edge (1.32 m at 2 m)
+  // shows a false canopy over the gap at 1.6-1.7 m: the bins there were seen nearer the centre.
+  View v = cast(g, kWalls, 1300);
+  map.add_frame(v.mask, v.points, g, level_ground(), 1300);
+  ASSERT_FALSE(map.cell(32, 1).present);
+  std::vector<Wall> fake = kWalls;
+  fake.push_back({1600, 1700, 500, 1500, 2000});
+  v = cast(g, fake, 2500);
+  map.add_frame(v.mask, v.points, g, level_ground(), 2500);
+  EXPECT_FALSE(map.cell(32, 1).present);
+  EXPECT_FALSE(map.cell(33, 1).present);
+  // Bins the first frame did not see come from the second.
+  EXPECT_TRUE(map.cell(60, 1).present); // the third canopy, 2.8-3.3 m at 1.9 m
+  EXPECT_NEAR(map.cell(60, 1).distance_m, 1.9, 0.001);
+}
+
+TEST(RowMap, CsvHeaderAndRows)
+{
+  const RowMap map = build();
+  const std::string path = testing::TempDir() + "rowmap_test.csv";
+  map.write_csv(path);
+  std::ifstream f(path);
+  std::string line;
+  ASSERT_TRUE(std::getline(f, line));
+  EXPECT_EQ(line, "position_m,band,present,distance_m,fill");
+  std::size_t rows = 0;
+  bool found = false, found_gap = false;
+  while (std::getline(f, line)) {
+    ++rows;
+    double pos = 0, dist = 0, fill = 0;
+    int band = 0, present = 0;
+    if (std::sscanf(line.c_str(), "%lf,%d,%d,%lf,%lf", &pos, &band, &present, &dist, &fill) ==
+            5 &&
+        std::abs(pos - 1.275) < 1e-9 && band == 1) {
+      found = true;
+      EXPECT_EQ(present, 1);
+      EXPECT_NEAR(dist, 2.0, 0.001);
+      EXPECT_NEAR(fill, 1.0, 0.03);
+    }
+    if (line.rfind("1.6250,2,0,,", 0) == 0)
+      found_gap = true;
+  }
+  EXPECT_TRUE(found);
+  EXPECT_TRUE(found_gap);
+  EXPECT_EQ(rows, std::size_t(map.last_bin() - map.first_bin() + 1) * 4);
+  EXPECT_GT(map.last_bin() - map.first_bin(), 90); // -1.2 to 5.2 m at least
+  std::remove(path.c_str());
+}
+
+TEST(RowMap, PngWrittenWithItsSize)
+{
+  const RowMap map = build();
+  const std::string path = testing::TempDir() + "rowmap_test.png";
+  map.write_png(path, trees());
+  const cv::Mat img = cv::imread(path, cv::IMREAD_COLOR);
+  ASSERT_FALSE(img.empty());
+  const int bins = int(map.last_bin() - map.first_bin() + 1);
+  // 8 px a bin, 160 px a metre of height up to 1.6 m, the margins.
+  EXPECT_EQ(img.cols, 70 + bins * 8 + 20);
+  EXPECT_EQ(img.rows, 50 + 256 + 80);
+  EXPECT_EQ(img.size(), map.render_size());
+  // The gap's cells dark grey, the canopy's coloured, at the middle of band 1 (0.85 m).
+  const int y = 50 + 256 - int(std::lround(0.85 * 160));
+  auto x_of = [&](long b) { return 70 + int(b - map.first_bin()) * 8 + 4; };
+  EXPECT_EQ(img.at<cv::Vec3b>(y, x_of(32)), cv::Vec3b(60, 60, 60));
+  EXPECT_EQ(img.at<cv::Vec3b>(y, x_of(33)), cv::Vec3b(60, 60, 60));
+  const cv::Vec3b a = img.at<cv::Vec3b>(y, x_of(25)), b = img.at<cv::Vec3b>(y, x_of(40));
+  EXPECT_NE(a, cv::Vec3b(60, 60, 60));
+  EXPECT_NE(a, b); // 2.0 m and 2.2 m differ in colour
+  std::remove(path.c_str());
+}
+
+TEST(RowMap, ErrorsNameThePath)
+{
+  const RowMap map = build(400);
+  const std::string bad = "/nonexistent-treestereo-dir/sub/map";
+  for (const std::string ext : {".csv", ".png"}) {
+    try {
+      if (ext == ".csv")
+        map.write_csv(bad + ext);
+      else
+        map.write_png(bad + ext);
+      FAIL() << "no error for " << ext;
+    } catch (const std::runtime_error &e) {
+      EXPECT_NE(std::string(e.what()).find(bad + ext), std::string::npos) << e.what();
+    }
+  }
+  RowMap empty;
+  EXPECT_THROW(empty.write_png(testing::TempDir() + "empty.png"), std::runtime_error);
+}
+
+TEST(RowMap, RejectsBadInput)
+{
+  RowMapParams p;
+  p.band_edges_mm = {400, 300, 900};
+  try {
+    RowMap m(p);
+    FAIL() << "no error";
+  } catch (const std::runtime_error &e) {
+    EXPECT_NE(std::string(e.what()).find("band_edges_mm"), std::string::npos);
+  }
+  p = RowMapParams();
+  p.bin_mm = 0;
+  EXPECT_THROW(RowMap m(p), std::runtime_error);
+  RowMap map;
+  const StereoGeometry g = camera();
+  EXPECT_THROW(map.add_frame(cv::Mat::zeros(10, 10, CV_8U), {}, g, level_ground(), 0),
+               std::runtime_error);
+  GroundPlane none;
+  EXPECT_THROW(map.add_frame(cv::Mat::zeros(g.view_size, CV_8U), {}, g, none, 0),
+               std::runtime_error);
+}

@@ -1,0 +1,494 @@
+// The tree tracker against a constructed row: trees with known world extents, the rig driving by
+// at 0.5 and 2 m/s at 7 frames/s, each frame's segments as the view cuts them and the tree in
+// front's measurements. Frames where the tree is clipped carry wrong values on purpose: none of
+// them may reach a record.
+#include "treestereo/rowtrack.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+using namespace treestereo;
+
+namespace {
+
+struct TrueTree {
+  double start_mm, end_mm; // world x
+  double height_m, distance_m;
+  double width_m() const { return (end_mm - start_mm) / 1000.0; }
+  double centre_m() const { return 0.5 * (start_mm + end_mm) / 1000.0; }
+};
+
+// Gaps 150, 800, 300 and 500 mm.
+const std::vector<TrueTree> kRow = {
+    {1000, 1700, 0.90, 2.00}, {1850, 2650, 1.00, 2.05}, {3450, 4050, 0.80, 1.95},
+    {4350, 5200, 1.10, 2.10}, {5700, 6400, 0.95, 2.02}};
+
+// The view: 1296 px wide, fx 1100, cx 648; the row's front at 2 m.
+constexpr double kNear = 2000;
+const double kLeftSlope = (-0.5 - 648.0) / 1100.0, kRightSlope = (1296 - 0.5 - 648.0) / 1100.0;
+const double kL = kLeftSlope * kNear, kR = kRightSlope * kNear; // -1179 and 1179 mm
+
+struct Sim {
+  double speed_m_s = 0.5;
+  double from_mm = 0, to_mm = 8000;   // the rig's true travel
+  int hide_tree = -1;                 // this tree's segment is missing for one frame...
+  bool hidden = false;                // ...(the first frame it is fully in view and in front)
+  int top_clipped_tree = 3;           // this tree's top is clipped in two frames of three
+  bool merge_touching = false;        // touching canopies give one segment (mode Row)
+  int split_frame = -1;               // up to this frame touching canopies are seen apart
+  bool hide_second = false;           // ...or the second of them not at all
+};
+
+struct SimFrame {
+  TrackFrame frame;
+  double true_position_mm = 0;
+};
+
+TreeMetrics measure(const TrueTree &t, int index, int frame, double a, double b, int top_clipped)
+{
+  TreeMetrics m;
+  m.tree_present = true;
+  m.clipped.left = a <= kL;
+  m.clipped.right = b >= kR;
+  m.clipped.top = index == top_clipped && frame % 3 != 0; // most of its frames
+  const bool lr = m.clipped.left || m.clipped.right, tb = m.clipped.top || m.clipped.bottom;
+  // Wrong on purpose where clipped: a lower bound of the extent, nonsense for the rest.
+  m.height_m = tb ? 0.6 * t.height_m : t.height_m;
+  m.width_m = lr ? (std::min(b, kR) - std::max(a, kL)) / 1000.0 : t.width_m();
+  const bool any = lr || tb;
+  m.distance_m = any ? 9.9 : t.distance_m;
+  m.thickness_m = any ? 0.01 : 0.4;
+  m.confidence = any ? 0.05 : 0.8 + 0.01 * (frame % 5);
+  for (int k = 0; k < 3; ++k) {
+    Band band;
+    band.present = true;
+    band.top_m = -0.4 + 0.3 * k;
+    band.bottom_m = band.top_m + 0.3;
+    band.left_m = any ? 0 : a / 1000.0;
+    band.right_m = any ? 0 : b / 1000.0;
+    band.width_m = any ? 0 : t.width_m();
+    band.depth_m = any ? 9 : t.distance_m;
+    band.fill = any ? 0 : 0.5 + 0.1 * k;
+    m.bands.push_back(band);
+  }
+  return m;
+}
+
+std::vector<SimFrame> simulate(const std::vector<TrueTree> &trees, Sim sim)
+{
+  const double step = sim.speed_m_s * 1000.0 / 7.0 * (sim.to_mm >= sim.from_mm ? 1 : -1);
+  const int n = int(std::floor((sim.to_mm - sim.from_mm) / step)) + 1;
+  std::vector<SimFrame> out;
+  for (int f = 0; f < n; ++f) {
+    SimFrame s;
+    const double pos = sim.from_mm + f * step;
+    s.true_position_mm = pos;
+    TrackFrame &tf = s.frame;
+    tf.position_mm = pos + 8.0 * std::sin(1.7 * f); // the travel estimate's error
+    tf.left_slope = kLeftSlope;
+    tf.right_slope = kRightSlope;
+    struct Vis {
+      double lo, hi, a, b;
+      int tree;
+    };
+    std::vector<Vis> vis;
+    for (std::size_t i = 0; i < trees.size(); ++i) {
+      const double a = trees[i].start_mm - pos, b = trees[i].end_mm - pos;
+      double lo = std::max(a, kL), hi = std::min(b, kR);
+      if (lo >= hi)
+        continue;
+      // The limb's sampling moves an end a few mm; an end on the image edge stays there.
+      if (a > kL)
+        lo += 5.0 * std::sin(0.9 * f + double(i));
+      if (b < kR)
+        hi += 5.0 * std::cos(1.3 * f + double(i));
+      if (int(i) == sim.hide_tree && !sim.hidden && a > kL + 100 && b < kR - 100 &&
+          std::abs(0.5 * (a + b)) < 400) {
+        sim.hidden = true;
+        continue;
+      }
+      vis.push_back({lo, hi, a, b, int(i)});
+    }
+    // Touching canopies as one segment, unless this frame is a split one.
+    std::vector<Vis> segs;
+    for (const Vis &v : vis) {
+      if (sim.merge_touching && f > sim.split_frame && !segs.empty() &&
+          v.a <= segs.back().b + 1.0) {
+        segs.back().hi = std::max(segs.back().hi, v.hi);
+        segs.back().b = v.b;
+        segs.back().tree = -1; // several trees: measured as one canopy
+        continue;
+      }
+      // Up to the split frame the points near the contact are missing: the second canopy
+      // starts 70 mm on (and is not seen while less than 10 mm of it would be left).
+      if (sim.merge_touching && f <= sim.split_frame && !segs.empty() &&
+          v.a <= segs.back().b + 1.0) {
+        Vis w = v;
+        w.lo += 70.0;
+        if (!sim.hide_second && w.lo < w.hi - 10.0)
+          segs.push_back(w);
+        continue;
+      }
+      segs.push_back(v);
+    }
+    int front = -1;
+    for (std::size_t i = 0; i < segs.size(); ++i) {
+      RowSegment r;
+      r.lo_mm = segs[i].lo;
+      r.hi_mm = segs[i].hi;
+      r.near_mm = kNear;
+      r.n_points = 100;
+      tf.segments.push_back(r);
+      const double c = 0.5 * (segs[i].lo + segs[i].hi);
+      if (front < 0 ||
+          std::abs(c) < std::abs(0.5 * (tf.segments[std::size_t(front)].lo_mm +
+                                        tf.segments[std::size_t(front)].hi_mm)))
+        front = int(i);
+    }
+    if (front >= 0 && segs[std::size_t(front)].tree >= 0) {
+      const Vis &v = segs[std::size_t(front)];
+      tf.measured_segment = front;
+      tf.metrics = measure(trees[std::size_t(v.tree)], v.tree, f, v.a, v.b,
+                           sim.top_clipped_tree);
+      tf.segments[std::size_t(front)].selected = true;
+    }
+    out.push_back(s);
+  }
+  return out;
+}
+
+struct Emitted {
+  TreeRecord record;
+  int frame; // -1: from finish()
+};
+
+std::vector<Emitted> run(TreeTracker &tracker, const std::vector<SimFrame> &frames,
+                         bool finish = true)
+{
+  std::vector<Emitted> out;
+  for (std::size_t f = 0; f < frames.size(); ++f)
+    for (TreeRecord &r : tracker.update(frames[f].frame))
+      out.push_back({r, int(f)});
+  if (finish)
+    for (TreeRecord &r : tracker.finish())
+      out.push_back({r, -1});
+  return out;
+}
+
+// The first frame in which the tree's canopy is wholly behind the view's left edge.
+int first_frame_behind(const std::vector<SimFrame> &frames, const TrueTree &t)
+{
+  for (std::size_t f = 0; f < frames.size(); ++f)
+    if (t.end_mm - frames[f].true_position_mm <= kL)
+      return int(f);
+  return -1;
+}
+
+void expect_row(const std::vector<Emitted> &got, const std::vector<SimFrame> &frames)
+{
+  ASSERT_EQ(got.size(), kRow.size());
+  for (std::size_t i = 0; i < kRow.size(); ++i) {
+    SCOPED_TRACE("tree " + std::to_string(i));
+    const TreeRecord &r = got[i].record;
+    const TrueTree &t = kRow[i];
+    EXPECT_EQ(r.id, int(i) + 1);
+    EXPECT_TRUE(r.complete);
+    EXPECT_FALSE(r.lost);
+    EXPECT_NEAR(r.position_m, t.centre_m(), 0.05);
+    EXPECT_NEAR(r.start_m, t.start_mm / 1000.0, 0.05);
+    EXPECT_NEAR(r.end_m, t.end_mm / 1000.0, 0.05);
+    // The unclipped frames' values exactly: a clipped frame's would move the median.
+    ASSERT_TRUE(r.has_height && r.has_width && r.has_depth);
+    EXPECT_DOUBLE_EQ(r.height_m, t.height_m);
+    EXPECT_DOUBLE_EQ(r.width_m, t.width_m());
+    EXPECT_DOUBLE_EQ(r.distance_m, t.distance_m);
+    EXPECT_DOUBLE_EQ(r.thickness_m, 0.4);
+    EXPECT_GE(r.confidence, 0.8);
+    EXPECT_GE(r.frames, 1);
+    EXPECT_GE(r.height_frames, r.frames);
+    ASSERT_EQ(r.bands.size(), 3u);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_TRUE(r.bands[std::size_t(k)].present);
+      EXPECT_DOUBLE_EQ(r.bands[std::size_t(k)].depth_m, t.distance_m);
+      EXPECT_DOUBLE_EQ(r.bands[std::size_t(k)].fill, 0.5 + 0.1 * k);
+      EXPECT_NEAR(r.bands[std::size_t(k)].left_m, t.start_mm / 1000.0, 0.02);
+    }
+    // Emitted as it leaves: the frame its canopy is behind the left edge, or the next.
+    const int behind = first_frame_behind(frames, t);
+    ASSERT_GE(behind, 0);
+    EXPECT_GE(got[i].frame, behind);
+    EXPECT_LE(got[i].frame, behind + 1);
+    if (i == 0) {
+      EXPECT_FALSE(r.has_spacing);
+    } else {
+      ASSERT_TRUE(r.has_spacing);
+      EXPECT_NEAR(r.spacing_m, t.centre_m() - kRow[i - 1].centre_m(), 0.05);
+      EXPECT_NEAR(r.gap_m, (t.start_mm - kRow[i - 1].end_mm) / 1000.0, 0.05);
+    }
+  }
+}
+
+} // namespace
+
+TEST(TreeTracker, FiveTreesAtHalfMetrePerSecond)
+{
+  Sim sim;
+  sim.speed_m_s = 0.5;
+  const auto frames = simulate(kRow, sim);
+  TreeTracker tracker;
+  expect_row(run(tracker, frames), frames);
+}
+
+TEST(TreeTracker, FiveTreesAtTwoMetresPerSecond)
+{
+  Sim sim;
+  sim.speed_m_s = 2.0;
+  const auto frames = simulate(kRow, sim);
+  TreeTracker tracker;
+  expect_row(run(tracker, frames), frames);
+}
+
+TEST(TreeTracker, ClippedFramesWouldMoveTheMedian)
+{
+  // The check above can fail: the fourth tree's top-clipped frames, fused, read low.
+  Sim sim;
+  sim.speed_m_s = 0.5;
+  const auto frames = simulate(kRow, sim);
+  std::vector<double> all;
+  for (const SimFrame &f : frames)
+    if (f.frame.measured_segment >= 0 && f.frame.metrics.clipped.top)
+      all.push_back(f.frame.metrics.height_m);
+  ASSERT_FALSE(all.empty());
+  for (double h : all)
+    EXPECT_LT(h, kRow[3].height_m);
+}
+
+TEST(TreeTracker, DrivingBackwardsEmitsInReverse)
+{
+  Sim sim;
+  sim.speed_m_s = 1.0;
+  sim.from_mm = 7600;
+  sim.to_mm = -1500;
+  const auto frames = simulate(kRow, sim);
+  TreeTracker tracker;
+  const auto got = run(tracker, frames);
+  ASSERT_EQ(got.size(), kRow.size());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    const TrueTree &t = kRow[kRow.size() - 1 - i];
+    EXPECT_EQ(got[i].record.id, int(i) + 1);
+    EXPECT_NEAR(got[i].record.position_m, t.centre_m(), 0.05);
+    EXPECT_GE(got[i].frame, 0) << "left the view before the end";
+    if (i > 0) {
+      EXPECT_NEAR(got[i].record.gap_m,
+                  (kRow[kRow.size() - i].start_mm - t.end_mm) / 1000.0, 0.05);
+    }
+  }
+}
+
+TEST(TreeTracker, HiddenForOneFrameKeepsItsId)
+{
+  Sim sim;
+  sim.speed_m_s = 1.0;
+  sim.hide_tree = 2;
+  const auto frames = simulate(kRow, sim);
+  const auto full = simulate(kRow, Sim{1.0});
+  TreeTracker tracker;
+  const auto got = run(tracker, frames);
+  ASSERT_EQ(got.size(), kRow.size());
+  EXPECT_EQ(got[2].record.id, 3);
+  EXPECT_FALSE(got[2].record.lost);
+  EXPECT_NEAR(got[2].record.position_m, kRow[2].centre_m(), 0.05);
+  EXPECT_EQ(got[4].record.id, 5);
+  // Seen in one frame fewer than without the gap.
+  TreeTracker reference;
+  const auto ref = run(reference, full);
+  ASSERT_EQ(ref.size(), kRow.size());
+  EXPECT_EQ(got[2].record.frames_seen, ref[2].record.frames_seen - 1);
+
+  // Without a grace the tree is lost and found again as a new one.
+  TrackerParams p;
+  p.grace_frames = 0;
+  TreeTracker strict(p);
+  const auto split = run(strict, frames);
+  ASSERT_EQ(split.size(), kRow.size() + 1);
+  int lost = 0;
+  for (const Emitted &e : split)
+    lost += e.record.lost ? 1 : 0;
+  EXPECT_EQ(lost, 1);
+}
+
+TEST(TreeTracker, FinishFlushesTheTreesInView)
+{
+  Sim sim;
+  sim.speed_m_s = 0.5;
+  sim.to_mm = 3000; // stops with the third tree in view and the second leaving
+  const auto frames = simulate(kRow, sim);
+  TreeTracker tracker;
+  const auto got = run(tracker, frames, false);
+  ASSERT_EQ(got.size(), 1u);   // only the first tree has left
+  EXPECT_EQ(tracker.open_tracks(), 2u);
+  const auto rest = tracker.finish();
+  ASSERT_EQ(rest.size(), 2u);
+  EXPECT_EQ(rest[0].id, 2);
+  EXPECT_EQ(rest[1].id, 3);
+  // The view at 3 m runs from 1.82 to 4.18 m: the second tree (1.85-2.65) is still whole, the
+  // third (3.45-4.05) too, but it has been whole for two frames only, in which the second was
+  // nearer the centre and measured: both its ends are known, its measurements are not.
+  EXPECT_NEAR(rest[0].position_m, kRow[1].centre_m(), 0.05);
+  EXPECT_TRUE(rest[0].complete);
+  EXPECT_DOUBLE_EQ(rest[0].height_m, kRow[1].height_m);
+  EXPECT_TRUE(rest[1].start_seen && rest[1].end_seen);
+  EXPECT_NEAR(rest[1].position_m, kRow[2].centre_m(), 0.05);
+  EXPECT_FALSE(rest[1].has_depth);
+  EXPECT_FALSE(rest[1].has_height);
+  EXPECT_FALSE(rest[1].complete);
+  EXPECT_EQ(tracker.open_tracks(), 0u);
+  EXPECT_TRUE(tracker.finish().empty());
+}
+
+TEST(TreeTracker, NeverFullyInViewIsFlaggedNotMeasured)
+{
+  // A tree already cut by the trailing edge at the start, and one still cut by the leading edge
+  // at the end.
+  const std::vector<TrueTree> row = {{-1700, -900, 1.0, 2.0}, {1000, 1700, 0.9, 2.0},
+                                     {2800, 3600, 0.9, 2.0}};
+  Sim sim;
+  sim.speed_m_s = 1.0;
+  sim.to_mm = 2000; // ends with the view at 0.82-3.18 m: the third tree cut at 3.18
+  const auto frames = simulate(row, sim);
+  TreeTracker tracker;
+  const auto got = run(tracker, frames);
+  ASSERT_EQ(got.size(), 3u);
+  const TreeRecord &a = got[0].record, &b = got[1].record, &c = got[2].record;
+  EXPECT_FALSE(a.complete);
+  EXPECT_FALSE(a.start_seen);
+  EXPECT_TRUE(a.end_seen);
+  EXPECT_FALSE(a.has_width);
+  EXPECT_FALSE(a.has_depth);
+  EXPECT_NEAR(a.end_m, -0.9, 0.05);
+  EXPECT_TRUE(b.complete);
+  EXPECT_NEAR(b.width_m, 0.7, 1e-9);
+  EXPECT_FALSE(c.complete);
+  EXPECT_FALSE(c.end_seen);
+  EXPECT_FALSE(c.has_width);
+  EXPECT_LT(c.end_m, 3.6 - 0.3); // the farthest seen, not the tree's end
+  const std::string js = to_json(a);
+  EXPECT_EQ(js.find("width_m"), std::string::npos);
+  EXPECT_EQ(js.find("distance_m"), std::string::npos);
+  EXPECT_NE(js.find("\"complete\":false"), std::string::npos);
+}
+
+TEST(TreeTracker, RowModeTouchingCanopiesAreOneSegment)
+{
+  // Two touching canopies (1.0-1.8 and 1.8-2.6 m), then a gap of 0.5 m and a third.
+  const std::vector<TrueTree> row = {{1000, 1800, 1.0, 2.0}, {1800, 2600, 1.0, 2.0},
+                                     {3100, 3700, 1.0, 2.0}};
+  for (double speed : {0.5, 2.0}) {
+    for (bool hide : {false, true}) {
+      SCOPED_TRACE("speed " + std::to_string(speed) + (hide ? ", second hidden" : ", apart"));
+      Sim sim;
+      sim.speed_m_s = speed;
+      sim.hide_second = hide;
+      sim.to_mm = 6000;
+      sim.merge_touching = true;
+      sim.top_clipped_tree = -1;
+      // The second canopy is seen apart from the first for its first frames in view (sparse
+      // points at the contact), or not at all while the first one's end is seen; then joined.
+      const double step = speed * 1000.0 / 7.0;
+      sim.split_frame = int(std::ceil((1800 + 100 - kR) / step)) + 1;
+      const auto frames = simulate(row, sim);
+      ASSERT_EQ(frames[std::size_t(sim.split_frame)].frame.segments.size(), hide ? 1u : 2u);
+      TrackerParams p;
+      p.mode = CanopyMode::Row;
+      TreeTracker tracker(p);
+      const auto got = run(tracker, frames);
+      ASSERT_EQ(got.size(), 2u);
+      EXPECT_EQ(got[0].record.id, 1);
+      // Seen apart, the second canopy had a track of its own (id 2) until it joined the first.
+      EXPECT_EQ(got[1].record.id, hide ? 2 : 3);
+      EXPECT_NEAR(got[0].record.start_m, 1.0, 0.05);
+      EXPECT_NEAR(got[0].record.end_m, 2.6, 0.05);
+      EXPECT_NEAR(got[0].record.width_m, 1.6, 0.05);
+      EXPECT_NEAR(got[1].record.start_m, 3.1, 0.05);
+      EXPECT_NEAR(got[1].record.end_m, 3.7, 0.05);
+      EXPECT_NEAR(got[1].record.gap_m, 0.5, 0.05);
+      EXPECT_TRUE(got[0].record.complete);
+      EXPECT_EQ(got[0].record.mode, CanopyMode::Row);
+    }
+  }
+}
+
+TEST(TreeTracker, RemnantAtTheTrailingEdgeIsNoNewTree)
+{
+  // A limb at the back of the first tree (0.6 m behind the row's front) shows at the left edge
+  // the frame after the tree was emitted: the edge ray reaches further back there.
+  Sim sim;
+  sim.speed_m_s = 1.0;
+  auto frames = simulate(kRow, sim);
+  TreeTracker probe;
+  const auto ref = run(probe, frames);
+  ASSERT_EQ(ref.size(), kRow.size());
+  const std::size_t f = std::size_t(ref[0].frame) + 1;
+  ASSERT_LT(f, frames.size());
+  RowSegment limb;
+  limb.near_mm = kNear + 600;
+  limb.lo_mm = kLeftSlope * limb.near_mm;
+  limb.hi_mm = limb.lo_mm + 30;
+  ASSERT_LT(limb.lo_mm + frames[f].true_position_mm, kRow[0].end_mm); // over the first tree
+  auto &segs = frames[f].frame.segments;
+  segs.insert(segs.begin(), limb);
+  if (frames[f].frame.measured_segment >= 0)
+    ++frames[f].frame.measured_segment;
+  TreeTracker tracker;
+  const auto got = run(tracker, frames);
+  ASSERT_EQ(got.size(), kRow.size());
+  for (std::size_t i = 0; i < got.size(); ++i)
+    EXPECT_EQ(got[i].record.id, int(i) + 1);
+}
+
+TEST(TreeTracker, JsonLineHasTheDesignNames)
+{
+  Sim sim;
+  const auto frames = simulate(kRow, sim);
+  TreeTracker tracker;
+  const auto got = run(tracker, frames);
+  ASSERT_GE(got.size(), 2u);
+  const std::string js = to_json(got[1].record);
+  EXPECT_EQ(js.find('\n'), std::string::npos);
+  EXPECT_EQ(js.rfind("{\"id\":2,", 0), 0u) << js;
+  for (const char *k : {"\"position_m\":", "\"start_m\":", "\"end_m\":", "\"distance_m\":",
+                        "\"height_m\":", "\"width_m\":", "\"thickness_m\":", "\"bands\":[{",
+                        "\"frames\":", "\"confidence\":", "\"spacing_m\":", "\"gap_m\":",
+                        "\"fill\":"})
+    EXPECT_NE(js.find(k), std::string::npos) << k << " in " << js;
+  EXPECT_NE(js.find("\"height_m\":1,"), std::string::npos) << js;
+  EXPECT_EQ(js.find("null"), std::string::npos);
+}
+
+TEST(TreeTracker, RejectsBadInput)
+{
+  TrackerParams p;
+  p.grace_frames = -1;
+  EXPECT_THROW({ TreeTracker t(p); }, std::runtime_error);
+  p = TrackerParams();
+  p.forward = 0;
+  try {
+    TreeTracker t(p);
+    FAIL() << "no error";
+  } catch (const std::runtime_error &e) {
+    EXPECT_NE(std::string(e.what()).find("forward"), std::string::npos);
+  }
+  TreeTracker t;
+  TrackFrame f;
+  f.left_slope = 0.5;
+  f.right_slope = -0.5;
+  EXPECT_THROW(t.update(f), std::runtime_error);
+  f.left_slope = kLeftSlope;
+  f.right_slope = kRightSlope;
+  f.measured_segment = 0; // no segments
+  EXPECT_THROW(t.update(f), std::runtime_error);
+}
