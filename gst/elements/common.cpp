@@ -290,7 +290,122 @@ GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, 
   meta->n_points = guint(r.classes.size());
   meta->n_canopy_points = guint(r.n_canopy_points);
   meta->n_seam_pixels = guint(r.n_seam_pixels);
+  const std::size_t n = std::min<std::size_t>(r.segments.size(), GST_TREE_STEREO_MAX_SEGMENTS);
+  meta->n_stored_segments = guint(n);
+  for (std::size_t i = 0; i < n; i++) {
+    const RowSegment &g = r.segments[i];
+    GstTreeStereoRowSegment &o = meta->segments[i];
+    o.lo_m = g.lo_mm * kMmToM;
+    o.hi_m = g.hi_mm * kMmToM;
+    o.near_m = g.near_mm * kMmToM;
+    o.n_points = guint(g.n_points);
+    o.selected = g.selected;
+  }
   return meta;
+}
+
+std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta)
+{
+  std::vector<RowSegment> out;
+  const guint n = std::min<guint>(meta->n_stored_segments, GST_TREE_STEREO_MAX_SEGMENTS);
+  out.reserve(n);
+  for (guint i = 0; i < n; i++) {
+    const GstTreeStereoRowSegment &g = meta->segments[i];
+    RowSegment o;
+    o.lo_mm = g.lo_m * 1e3;
+    o.hi_mm = g.hi_m * 1e3;
+    o.near_mm = g.near_m * 1e3;
+    o.n_points = g.n_points;
+    o.selected = g.selected != FALSE;
+    out.push_back(o);
+  }
+  return out;
+}
+
+GroundPlane ground_from_meta(const GstTreeStereoCanopyMeta *meta)
+{
+  GroundPlane g;
+  if (!meta || !meta->ground_found)
+    return g;
+  g.found = true;
+  g.normal = cv::Vec3d(meta->ground_normal[0], meta->ground_normal[1], meta->ground_normal[2]);
+  g.d = meta->ground_d_m * 1e3;
+  return g;
+}
+
+std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
+                                        const GstTreeStereoMatchesMeta *mm, guint view_width)
+{
+  std::vector<PixelPoint> out;
+  if (!pm || view_width == 0)
+    return out;
+  out.reserve(pm->n_points);
+  const guint n_grid = std::min(pm->stats.n_grid, pm->n_points);
+  const guint first_grid = pm->dense ? 0 : pm->n_points - n_grid;
+  for (guint i = 0; i < pm->n_points; i++) {
+    const GstTreeStereoPoint &p = pm->points[i];
+    if (!p.valid)
+      continue;
+    PixelPoint q;
+    if (i >= first_grid) { // a grid or dense point: match_index is the left pixel's index
+      q.px = cv::Point2f(float(p.match_index % view_width), float(p.match_index / view_width));
+    } else if (mm && p.match_index < mm->n_matches) {
+      q.px = cv::Point2f(mm->matches[p.match_index].xl, mm->matches[p.match_index].yl);
+    } else {
+      continue; // a match point whose match is not at hand: no pixel
+    }
+    q.p.x = p.x;
+    q.p.y = p.y;
+    q.p.z = p.z;
+    q.p.match_index = p.match_index;
+    q.p.valid = true;
+    out.push_back(q);
+  }
+  return out;
+}
+
+void record_to_gst(const TreeRecord &r, GstTreeStereoTreeRecord *out)
+{
+  gst_tree_stereo_tree_record_clear(out);
+  out->id = guint(std::max(0, r.id));
+  out->mode = canopy_mode_to_gst(r.mode);
+  out->complete = r.complete;
+  out->start_seen = r.start_seen;
+  out->end_seen = r.end_seen;
+  out->position_m = r.position_m;
+  out->start_m = r.start_m;
+  out->end_m = r.end_m;
+  out->has_height = r.has_height;
+  out->height_m = r.has_height ? r.height_m : 0;
+  out->has_width = r.has_width;
+  out->width_m = r.has_width ? r.width_m : 0;
+  out->has_depth = r.has_depth;
+  if (r.has_depth) {
+    out->distance_m = r.distance_m;
+    out->thickness_m = r.thickness_m;
+    out->confidence = r.confidence;
+    gst_tree_stereo_tree_record_set_n_bands(out, guint(r.bands.size()));
+    for (std::size_t i = 0; i < r.bands.size(); i++) {
+      const RecordBand &b = r.bands[i];
+      GstTreeStereoBand &o = out->bands[i];
+      o.present = b.present;
+      if (!b.present)
+        continue; // an absent band's values mean nothing: 0
+      o.top_m = b.top_m;
+      o.bottom_m = b.bottom_m;
+      o.left_m = b.left_m;
+      o.right_m = b.right_m;
+      o.width_m = b.width_m;
+      o.depth_m = b.depth_m;
+      o.fill = b.fill;
+    }
+  }
+  out->frames = guint(std::max(0, r.frames));
+  out->frames_seen = guint(std::max(0, r.frames_seen));
+  out->has_spacing = r.has_spacing;
+  out->spacing_m = r.has_spacing ? r.spacing_m : 0;
+  out->gap_m = r.has_spacing ? r.gap_m : 0;
+  out->lost = r.lost;
 }
 
 static GstBufferPool *configured_pool(GstBufferPool *pool, GstCaps *caps, guint size, guint min,

@@ -10,6 +10,7 @@
 
 #include "treestereo/canopy.hpp"
 #include "treestereo/metrics.hpp"
+#include "treestereo/rowtrack.hpp"
 #include "treestereo/types.hpp"
 
 #include <exception>
@@ -110,6 +111,18 @@ GstTreeStereoCanopyMode canopy_mode_to_gst(CanopyMode mode);
  * copied into a new GstBuffer) as the left view, the zone and the ground in metres, the counts.
  * r.present false gives a view with present FALSE (no canopy in the zone). */
 GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, CanopyMode mode);
+
+/* The canopy meta's stored segments (m) as lib's (mm), left to right. */
+std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta);
+/* The canopy meta's ground plane in lib's units (mm); found false without one (or no meta). */
+GroundPlane ground_from_meta(const GstTreeStereoCanopyMeta *meta);
+/* The points meta's valid points with their rectified-left pixels: a grid or dense point's from
+ * its pixel index (y * @view_width + x), a match point's from the matches meta (skipped when
+ * @mm is NULL or lacks it). */
+std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
+                                        const GstTreeStereoMatchesMeta *mm, guint view_width);
+/* lib's tree record -> the message's (@out is cleared first). */
+void record_to_gst(const TreeRecord &r, GstTreeStereoTreeRecord *out);
 
 /* decide_allocation for an element that produces whole video frames of the query's caps: keeps
  * downstream's pool when it takes our config, else a GstVideoBufferPool, sized for a frame. */

@@ -508,6 +508,8 @@ canopy_transform (GstBuffer * dest, GstMeta * meta, GstBuffer * buffer, GQuark t
   dmeta->n_points = src->n_points;
   dmeta->n_canopy_points = src->n_canopy_points;
   dmeta->n_seam_pixels = src->n_seam_pixels;
+  dmeta->n_stored_segments = MIN (src->n_stored_segments, GST_TREE_STEREO_MAX_SEGMENTS);
+  memcpy (dmeta->segments, src->segments, sizeof (src->segments));
   gst_tree_stereo_vegetation_view_copy (&dmeta->view, &src->view);
   if (scale)
     vegetation_view_scale (&dmeta->view, sx, sy);
@@ -681,6 +683,7 @@ gst_buffer_add_tree_stereo_truth_meta (GstBuffer * buffer, const GstTreeStereoTr
 static const gchar *index_names[] = { "exg", "exg-exr", "exg-norm", "exg-exr-norm" };
 static const gchar *method_names[] = { "euclidean", "cosine-norm" };
 static const gchar *canopy_mode_names[] = { "colour", "tree", "row" };
+static const gchar *travel_source_names[] = { "none", "stereo", "speed" };
 
 const gchar *
 gst_tree_stereo_vegetation_index_to_string (GstTreeStereoVegetationIndex index)
@@ -734,6 +737,27 @@ gst_tree_stereo_canopy_mode_from_string (const gchar * s, GstTreeStereoCanopyMod
   for (i = 0; s && i < G_N_ELEMENTS (canopy_mode_names); i++) {
     if (g_strcmp0 (s, canopy_mode_names[i]) == 0) {
       *mode = (GstTreeStereoCanopyMode) i;
+      return TRUE;
+    }
+  }
+  return FALSE;
+}
+
+const gchar *
+gst_tree_stereo_travel_source_to_string (GstTreeStereoTravelSource source)
+{
+  return ((guint) source < G_N_ELEMENTS (travel_source_names)) ? travel_source_names[source] :
+      NULL;
+}
+
+gboolean
+gst_tree_stereo_travel_source_from_string (const gchar * s, GstTreeStereoTravelSource * source)
+{
+  guint i;
+  for (i = 0; s && i < G_N_ELEMENTS (travel_source_names); i++) {
+    if (g_strcmp0 (s, travel_source_names[i]) == 0) {
+      if (source)
+        *source = (GstTreeStereoTravelSource) i;
       return TRUE;
     }
   }
@@ -1023,6 +1047,42 @@ mfield (gchar * buf, gsize len, const gchar * prefix, const gchar * name)
   return buf;
 }
 
+/* One band as a "band" structure appended to the GstValueArray @bands (treemetrics' bands and
+ * the tree records' share the layout). */
+static void
+append_band (GValue * bands, const GstTreeStereoBand * b)
+{
+  GValue v = G_VALUE_INIT;
+  GstStructure *bs = gst_structure_new ("band",
+      "present", G_TYPE_BOOLEAN, b->present,
+      "top", G_TYPE_DOUBLE, b->top_m,
+      "bottom", G_TYPE_DOUBLE, b->bottom_m,
+      "left", G_TYPE_DOUBLE, b->left_m,
+      "right", G_TYPE_DOUBLE, b->right_m,
+      "width", G_TYPE_DOUBLE, b->width_m,
+      "depth", G_TYPE_DOUBLE, b->depth_m,
+      "fill", G_TYPE_DOUBLE, b->fill, NULL);
+  g_value_init (&v, GST_TYPE_STRUCTURE);
+  gst_value_set_structure (&v, bs);
+  gst_structure_free (bs);
+  gst_value_array_append_and_take_value (bands, &v);
+}
+
+static gboolean
+parse_band (const GValue * v, GstTreeStereoBand * b)
+{
+  const GstStructure *bs;
+
+  if (!v || !GST_VALUE_HOLDS_STRUCTURE (v))
+    return FALSE;
+  bs = gst_value_get_structure (v);
+  return gst_structure_get (bs, "present", G_TYPE_BOOLEAN, &b->present,
+      "top", G_TYPE_DOUBLE, &b->top_m, "bottom", G_TYPE_DOUBLE, &b->bottom_m,
+      "left", G_TYPE_DOUBLE, &b->left_m, "right", G_TYPE_DOUBLE, &b->right_m,
+      "width", G_TYPE_DOUBLE, &b->width_m, "depth", G_TYPE_DOUBLE, &b->depth_m,
+      "fill", G_TYPE_DOUBLE, &b->fill, NULL);
+}
+
 static void
 set_metrics (GstStructure * s, const GstTreeStereoMetrics * m, const gchar * p)
 {
@@ -1069,23 +1129,8 @@ set_metrics (GstStructure * s, const GstTreeStereoMetrics * m, const gchar * p)
       NULL);
 
   g_value_init (&bands, GST_TYPE_ARRAY);
-  for (i = 0; i < m->n_bands; i++) {
-    const GstTreeStereoBand *b = &m->bands[i];
-    GValue v = G_VALUE_INIT;
-    GstStructure *bs = gst_structure_new ("band",
-        "present", G_TYPE_BOOLEAN, b->present,
-        "top", G_TYPE_DOUBLE, b->top_m,
-        "bottom", G_TYPE_DOUBLE, b->bottom_m,
-        "left", G_TYPE_DOUBLE, b->left_m,
-        "right", G_TYPE_DOUBLE, b->right_m,
-        "width", G_TYPE_DOUBLE, b->width_m,
-        "depth", G_TYPE_DOUBLE, b->depth_m,
-        "fill", G_TYPE_DOUBLE, b->fill, NULL);
-    g_value_init (&v, GST_TYPE_STRUCTURE);
-    gst_value_set_structure (&v, bs);
-    gst_structure_free (bs);
-    gst_value_array_append_and_take_value (&bands, &v);
-  }
+  for (i = 0; i < m->n_bands; i++)
+    append_band (&bands, &m->bands[i]);
   gst_structure_take_value (s, mfield (f, sizeof f, p, "bands"), &bands);
 }
 
@@ -1130,21 +1175,24 @@ get_metrics (const GstStructure * s, GstTreeStereoMetrics * m, const gchar * p)
     return FALSE;
   n = gst_value_array_get_size (bands);
   gst_tree_stereo_metrics_set_n_bands (m, n);
-  for (i = 0; i < n; i++) {
-    const GValue *v = gst_value_array_get_value (bands, i);
-    const GstStructure *bs;
-    GstTreeStereoBand *b = &m->bands[i];
-    if (!GST_VALUE_HOLDS_STRUCTURE (v))
+  for (i = 0; i < n; i++)
+    if (!parse_band (gst_value_array_get_value (bands, i), &m->bands[i]))
       return FALSE;
-    bs = gst_value_get_structure (v);
-    if (!gst_structure_get (bs, "present", G_TYPE_BOOLEAN, &b->present,
-            "top", G_TYPE_DOUBLE, &b->top_m, "bottom", G_TYPE_DOUBLE, &b->bottom_m,
-            "left", G_TYPE_DOUBLE, &b->left_m, "right", G_TYPE_DOUBLE, &b->right_m,
-            "width", G_TYPE_DOUBLE, &b->width_m, "depth", G_TYPE_DOUBLE, &b->depth_m,
-            "fill", G_TYPE_DOUBLE, &b->fill, NULL))
-      return FALSE;
-  }
   return TRUE;
+}
+
+/* The travel fields of the treemetrics message into @m. */
+static gboolean
+get_travel (const GstStructure * s, GstTreeStereoMetrics * m)
+{
+  GstTreeStereoTravelSource source;
+
+  if (!gst_tree_stereo_travel_source_from_string (gst_structure_get_string (s,
+              "travel-source"), &source))
+    return FALSE;
+  m->travel_source = source;
+  return gst_structure_get (s, "travel-m", G_TYPE_DOUBLE, &m->travel_m,
+      "position-m", G_TYPE_DOUBLE, &m->position_m, NULL);
 }
 
 GstStructure *
@@ -1152,10 +1200,17 @@ gst_tree_stereo_metrics_message_structure (const GstTreeStereoMetrics * metrics,
     const GstTreeStereoMetrics * smoothed, const GstTreeStereoTimes * times)
 {
   GstStructure *s;
+  const gchar *source;
 
   g_return_val_if_fail (metrics != NULL, NULL);
   s = gst_structure_new_empty (GST_TREE_STEREO_MESSAGE_TREEMETRICS);
   set_times (s, times);
+  source = gst_tree_stereo_travel_source_to_string ((GstTreeStereoTravelSource)
+      metrics->travel_source);
+  /* the rig's travel is one per frame: not repeated under "smoothed-" */
+  gst_structure_set (s, "travel-m", G_TYPE_DOUBLE, metrics->travel_m,
+      "position-m", G_TYPE_DOUBLE, metrics->position_m,
+      "travel-source", G_TYPE_STRING, source ? source : "none", NULL);
   set_metrics (s, metrics, "");
   if (smoothed)
     set_metrics (s, smoothed, "smoothed-");
@@ -1173,6 +1228,140 @@ gst_tree_stereo_metrics_message_parse (const GstStructure * s, GstTreeStereoMetr
     return FALSE;
   if (smoothed && !get_metrics (s, smoothed, "smoothed-"))
     return FALSE;
+  if (!get_travel (s, metrics))
+    return FALSE;
+  if (smoothed) {
+    smoothed->travel_m = metrics->travel_m;
+    smoothed->position_m = metrics->position_m;
+    smoothed->travel_source = metrics->travel_source;
+  }
+  return TRUE;
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Tree records
+ * --------------------------------------------------------------------------------------------- */
+
+void
+gst_tree_stereo_tree_record_clear (GstTreeStereoTreeRecord * record)
+{
+  g_return_if_fail (record != NULL);
+  g_free (record->bands);
+  memset (record, 0, sizeof (*record));
+}
+
+void
+gst_tree_stereo_tree_record_set_n_bands (GstTreeStereoTreeRecord * record, guint n)
+{
+  g_return_if_fail (record != NULL);
+  g_free (record->bands);
+  record->bands = n ? g_new0 (GstTreeStereoBand, n) : NULL;
+  record->n_bands = n;
+}
+
+GstStructure *
+gst_tree_stereo_tree_message_structure (const GstTreeStereoTreeRecord * r,
+    const GstTreeStereoTimes * times)
+{
+  GstStructure *s;
+  const gchar *mode;
+
+  g_return_val_if_fail (r != NULL, NULL);
+  mode = gst_tree_stereo_canopy_mode_to_string (r->mode);
+  s = gst_structure_new_empty (GST_TREE_STEREO_MESSAGE_TREE);
+  set_times (s, times);
+  gst_structure_set (s,
+      "id", G_TYPE_UINT, r->id,
+      "canopy-mode", G_TYPE_STRING, mode ? mode : "unknown",
+      "segment", G_TYPE_BOOLEAN, r->mode == GST_TREE_STEREO_CANOPY_ROW,
+      "complete", G_TYPE_BOOLEAN, r->complete,
+      "start-seen", G_TYPE_BOOLEAN, r->start_seen,
+      "end-seen", G_TYPE_BOOLEAN, r->end_seen,
+      "lost", G_TYPE_BOOLEAN, r->lost,
+      "position-m", G_TYPE_DOUBLE, r->position_m,
+      "start-m", G_TYPE_DOUBLE, r->start_m,
+      "end-m", G_TYPE_DOUBLE, r->end_m,
+      "frames", G_TYPE_UINT, r->frames,
+      "frames-seen", G_TYPE_UINT, r->frames_seen, NULL);
+  if (r->has_height)
+    gst_structure_set (s, "height-m", G_TYPE_DOUBLE, r->height_m, NULL);
+  if (r->has_width)
+    gst_structure_set (s, "width-m", G_TYPE_DOUBLE, r->width_m, NULL);
+  if (r->has_depth) {
+    GValue bands = G_VALUE_INIT;
+    guint i;
+    gst_structure_set (s, "distance-m", G_TYPE_DOUBLE, r->distance_m,
+        "thickness-m", G_TYPE_DOUBLE, r->thickness_m,
+        "confidence", G_TYPE_DOUBLE, r->confidence, NULL);
+    g_value_init (&bands, GST_TYPE_ARRAY);
+    for (i = 0; i < r->n_bands; i++)
+      append_band (&bands, &r->bands[i]);
+    gst_structure_take_value (s, "bands", &bands);
+  }
+  if (r->has_spacing)
+    gst_structure_set (s, "spacing-m", G_TYPE_DOUBLE, r->spacing_m,
+        "gap-m", G_TYPE_DOUBLE, r->gap_m, NULL);
+  return s;
+}
+
+gboolean
+gst_tree_stereo_tree_message_parse (const GstStructure * s, GstTreeStereoTreeRecord * r,
+    GstTreeStereoTimes * times)
+{
+  GstTreeStereoCanopyMode mode;
+
+  g_return_val_if_fail (s != NULL && r != NULL, FALSE);
+  gst_tree_stereo_tree_record_clear (r);
+  if (!gst_structure_has_name (s, GST_TREE_STEREO_MESSAGE_TREE) || !get_times (s, times))
+    return FALSE;
+  if (!gst_tree_stereo_canopy_mode_from_string (gst_structure_get_string (s, "canopy-mode"),
+          &mode))
+    return FALSE;
+  r->mode = mode;
+  if (!gst_structure_get (s,
+          "id", G_TYPE_UINT, &r->id,
+          "complete", G_TYPE_BOOLEAN, &r->complete,
+          "start-seen", G_TYPE_BOOLEAN, &r->start_seen,
+          "end-seen", G_TYPE_BOOLEAN, &r->end_seen,
+          "lost", G_TYPE_BOOLEAN, &r->lost,
+          "position-m", G_TYPE_DOUBLE, &r->position_m,
+          "start-m", G_TYPE_DOUBLE, &r->start_m,
+          "end-m", G_TYPE_DOUBLE, &r->end_m,
+          "frames", G_TYPE_UINT, &r->frames,
+          "frames-seen", G_TYPE_UINT, &r->frames_seen, NULL))
+    return FALSE;
+  if (gst_structure_has_field (s, "height-m")) {
+    if (!gst_structure_get_double (s, "height-m", &r->height_m))
+      return FALSE;
+    r->has_height = TRUE;
+  }
+  if (gst_structure_has_field (s, "width-m")) {
+    if (!gst_structure_get_double (s, "width-m", &r->width_m))
+      return FALSE;
+    r->has_width = TRUE;
+  }
+  if (gst_structure_has_field (s, "distance-m")) {
+    const GValue *bands = gst_structure_get_value (s, "bands");
+    guint i, n;
+    if (!gst_structure_get (s, "distance-m", G_TYPE_DOUBLE, &r->distance_m,
+            "thickness-m", G_TYPE_DOUBLE, &r->thickness_m,
+            "confidence", G_TYPE_DOUBLE, &r->confidence, NULL))
+      return FALSE;
+    if (!bands || !GST_VALUE_HOLDS_ARRAY (bands))
+      return FALSE;
+    n = gst_value_array_get_size (bands);
+    gst_tree_stereo_tree_record_set_n_bands (r, n);
+    for (i = 0; i < n; i++)
+      if (!parse_band (gst_value_array_get_value (bands, i), &r->bands[i]))
+        return FALSE;
+    r->has_depth = TRUE;
+  }
+  if (gst_structure_has_field (s, "spacing-m")) {
+    if (!gst_structure_get (s, "spacing-m", G_TYPE_DOUBLE, &r->spacing_m,
+            "gap-m", G_TYPE_DOUBLE, &r->gap_m, NULL))
+      return FALSE;
+    r->has_spacing = TRUE;
+  }
   return TRUE;
 }
 

@@ -318,6 +318,29 @@ GType gst_tree_stereo_canopy_mode_get_type (void);
 #define GST_TYPE_TREE_STEREO_CANOPY_MODE (gst_tree_stereo_canopy_mode_get_type ())
 
 /**
+ * GstTreeStereoRowSegment:
+ * @lo_m: X of the segment's leftmost point (m, rectified-left frame)
+ * @hi_m: X of its rightmost point (m)
+ * @near_m: its front depth, the 5th percentile of its points' Z (m)
+ * @n_points: 3D points in it
+ * @selected: TRUE when it is part of the canopy the meta's @view is (mode tree: the tree in
+ *   front; mode row: every segment)
+ *
+ * One stretch of the near row along x, separated from the next by an empty stretch (mode tree),
+ * or one continuous canopy (mode row).
+ */
+typedef struct {
+  gdouble lo_m;
+  gdouble hi_m;
+  gdouble near_m;
+  guint n_points;
+  gboolean selected;
+} GstTreeStereoRowSegment;
+
+/* Segments a canopy meta holds at most (the view of a rig between two rows holds a few). */
+#define GST_TREE_STEREO_MAX_SEGMENTS 16
+
+/**
  * GstTreeStereoCanopyMeta:
  * @mode: #GST_TREE_STEREO_CANOPY_TREE or #GST_TREE_STEREO_CANOPY_ROW
  * @view: the 3D canopy's silhouette in the LEFT view, as the vegetation meta's views are (its
@@ -336,6 +359,10 @@ GType gst_tree_stereo_canopy_mode_get_type (void);
  * @n_points: 3D points the decision was made on
  * @n_canopy_points: of them, on the selected canopy
  * @n_seam_pixels: mask pixels decided by the photo-consistency test on a seam
+ * @n_stored_segments: how many of the @n_segments segments @segments holds
+ *   (MIN (@n_segments, #GST_TREE_STEREO_MAX_SEGMENTS): the leftmost ones)
+ * @segments: the near row's segments along the row, left to right (treemetrics follows the
+ *   trees along the row with them)
  *
  * Added by stereodepth when it decides the canopy in 3D. treemetrics measures @view instead of
  * the vegetation meta's left view, treeoverlay outlines it.
@@ -357,6 +384,8 @@ typedef struct {
   guint n_points;
   guint n_canopy_points;
   guint n_seam_pixels;
+  guint n_stored_segments;
+  GstTreeStereoRowSegment segments[GST_TREE_STEREO_MAX_SEGMENTS];
 } GstTreeStereoCanopyMeta;
 
 GType gst_tree_stereo_canopy_meta_api_get_type (void);
@@ -407,6 +436,21 @@ typedef struct {
 } GstTreeStereoBand;
 
 /**
+ * GstTreeStereoTravelSource:
+ * @GST_TREE_STEREO_TRAVEL_NONE: no travel this frame (the first frame, the estimate failed or
+ *   is off): travel 0, the position kept
+ * @GST_TREE_STEREO_TRAVEL_STEREO: measured from the stereo views of this frame and the previous
+ * @GST_TREE_STEREO_TRAVEL_SPEED: the speed the application set times the time between frames
+ *
+ * Where a frame's travel comes from. Names in messages: "none", "stereo", "speed".
+ */
+typedef enum {
+  GST_TREE_STEREO_TRAVEL_NONE = 0,
+  GST_TREE_STEREO_TRAVEL_STEREO = 1,
+  GST_TREE_STEREO_TRAVEL_SPEED = 2,
+} GstTreeStereoTravelSource;
+
+/**
  * GstTreeStereoMetrics:
  *
  * Every figure of the treemetrics message (see docs/elements/treemetrics.md). When
@@ -414,6 +458,12 @@ typedef struct {
  * @confidence: how much of the measured silhouette has depth support (0..1): the share of its
  *   pixels near a 3D point the figures rest on
  * @canopy_mode: #GstTreeStereoCanopyMode of the silhouette measured (set with or without a tree)
+ * @travel_m: the rig's motion along the row since the previous frame (m, positive towards the
+ *   camera's +x); 0 when @travel_source is #GST_TREE_STEREO_TRAVEL_NONE. Set whether or not a
+ *   tree is present.
+ * @position_m: the rig's position along the row since the start of the stream (m): the sum of
+ *   the travels
+ * @travel_source: #GstTreeStereoTravelSource of @travel_m
  */
 typedef struct {
   gboolean tree_present;
@@ -432,6 +482,9 @@ typedef struct {
   GstTreeStereoBand *bands;
   gdouble confidence;
   guint canopy_mode; /* GstTreeStereoCanopyMode */
+  gdouble travel_m;
+  gdouble position_m;
+  guint travel_source; /* GstTreeStereoTravelSource */
 } GstTreeStereoMetrics;
 
 /* Deep copy (bands too) of @src into @dest; @dest is cleared first. */
@@ -606,7 +659,8 @@ void gst_tree_stereo_canopy_message_add (GstStructure *s, const GstTreeStereoCan
 gboolean gst_tree_stereo_canopy_message_parse (const GstStructure *s,
     GstTreeStereoCanopyMeta *meta);
 
-/* treemetrics: "tree-present"; when present also "distance", "height", "width", "thickness"
+/* treemetrics: "travel-m", "position-m" (gdouble, m) and "travel-source" (string) of
+ * @metrics, in every message (not repeated under "smoothed-"); "tree-present"; when present also "distance", "height", "width", "thickness"
  * (m), "area" (m2), "perimeter" (m), "complexity", "centroid-x/-y/-z" (m), "clipped" (flags)
  * and "clipped-top/-bottom/-left/-right" (booleans), "points", "matches", "bands" (a
  * GstValueArray of GstStructures "band" with "top", "bottom", "left", "right", "width",
@@ -614,11 +668,96 @@ gboolean gst_tree_stereo_canopy_message_parse (const GstStructure *s,
  * smoothed under "smoothed-" names when @smoothed is not NULL. */
 GstStructure *gst_tree_stereo_metrics_message_structure (const GstTreeStereoMetrics *metrics,
     const GstTreeStereoMetrics *smoothed, const GstTreeStereoTimes *times);
-/* Parses the raw figures into @metrics, the smoothed ones into @smoothed when not NULL. Both
+/* Parses the raw figures into @metrics, the smoothed ones into @smoothed when not NULL (the
+ * travel fields go into both). Both
  * must be zero-initialised or from an earlier parse (they are cleared first); free with
  * gst_tree_stereo_metrics_clear. Returns FALSE on a malformed structure. */
 gboolean gst_tree_stereo_metrics_message_parse (const GstStructure *s,
     GstTreeStereoMetrics *metrics, GstTreeStereoMetrics *smoothed, GstTreeStereoTimes *times);
+
+/* treemetrics, one message per tree record (DESIGN.md's tree record), named
+ * "treestereo-tree": a tree (mode tree) or a canopy segment (mode row) that left the view, or
+ * every one still open at EOS. */
+#define GST_TREE_STEREO_MESSAGE_TREE "treestereo-tree"
+
+/**
+ * GstTreeStereoTreeRecord:
+ * @id: 1, 2, ... in the order the trees entered the view
+ * @mode: #GST_TREE_STEREO_CANOPY_TREE (a tree) or #GST_TREE_STEREO_CANOPY_ROW (a canopy segment
+ *   of a hedgerow / fruit wall)
+ * @complete: both ends seen off the image edge and a frame with the canopy fully in view
+ * @start_seen: @start_m was seen off the image edge (else it is the farthest seen)
+ * @end_seen: likewise @end_m
+ * @position_m: canopy centre along the row, (@start_m + @end_m) / 2 (m, world: the rig's
+ *   position plus camera X)
+ * @start_m: the canopy's start along the row (m, world), < @end_m
+ * @end_m: its end
+ * @has_height: @height_m is a measurement (a frame with neither top nor bottom clipped)
+ * @height_m: fused height (m)
+ * @has_width: @width_m is a measurement
+ * @width_m: fused width (m); mode row: @end_m - @start_m
+ * @has_depth: @distance_m, @thickness_m, @bands and @confidence are measurements (frames fully
+ *   in view)
+ * @distance_m: fused distance (m)
+ * @thickness_m: fused thickness (m)
+ * @n_bands: bands in @bands
+ * @bands: fused bands (left_m / right_m world positions along the row), top to bottom
+ * @confidence: fused confidence (0..1)
+ * @frames: frames fused (fully in view; mode row: seen)
+ * @frames_seen: frames its segment was seen in
+ * @has_spacing: FALSE on the first record
+ * @spacing_m: |position_m - the previous record's position_m| (m)
+ * @gap_m: the empty stretch to the previous record's canopy (m; negative: overlap)
+ * @lost: emitted because it was not seen while still in view, not because it left
+ *
+ * Values the record lacks (has_* FALSE) are 0 and absent from the message.
+ */
+typedef struct {
+  guint id;
+  GstTreeStereoCanopyMode mode;
+  gboolean complete;
+  gboolean start_seen;
+  gboolean end_seen;
+  gdouble position_m;
+  gdouble start_m;
+  gdouble end_m;
+  gboolean has_height;
+  gdouble height_m;
+  gboolean has_width;
+  gdouble width_m;
+  gboolean has_depth;
+  gdouble distance_m;
+  gdouble thickness_m;
+  guint n_bands;
+  GstTreeStereoBand *bands;
+  gdouble confidence;
+  guint frames;
+  guint frames_seen;
+  gboolean has_spacing;
+  gdouble spacing_m;
+  gdouble gap_m;
+  gboolean lost;
+} GstTreeStereoTreeRecord;
+
+/* Frees the bands and zeroes everything. */
+void gst_tree_stereo_tree_record_clear (GstTreeStereoTreeRecord *record);
+/* Allocates @n zeroed bands (frees the previous ones). */
+void gst_tree_stereo_tree_record_set_n_bands (GstTreeStereoTreeRecord *record, guint n);
+
+/* "treestereo-tree": the times (of the buffer that made the tree leave the view, or the last
+ * buffer at EOS), "id" (guint), "canopy-mode" ("tree"/"row"), "segment" (gboolean, TRUE in mode
+ * row: the record is a canopy segment, not a tree), "complete", "start-seen", "end-seen",
+ * "lost" (gboolean), "position-m", "start-m", "end-m" (gdouble, m), "frames", "frames-seen"
+ * (guint); when measured "height-m", "width-m" (gdouble, m), "distance-m", "thickness-m"
+ * (gdouble, m), "confidence" (gdouble), "bands" (GstValueArray of "band" structures as in the
+ * treemetrics message); from the second record on "spacing-m", "gap-m" (gdouble, m). */
+GstStructure *gst_tree_stereo_tree_message_structure (const GstTreeStereoTreeRecord *record,
+    const GstTreeStereoTimes *times);
+/* Parses into @record (zero-initialised or from an earlier parse: cleared first; free with
+ * gst_tree_stereo_tree_record_clear); the has_* flags say which optional fields were there.
+ * @times may be NULL. Returns FALSE on a malformed structure or another message. */
+gboolean gst_tree_stereo_tree_message_parse (const GstStructure *s,
+    GstTreeStereoTreeRecord *record, GstTreeStereoTimes *times);
 
 /* Enum <-> string names used in messages and properties. */
 const gchar *gst_tree_stereo_vegetation_index_to_string (GstTreeStereoVegetationIndex index);
@@ -630,6 +769,10 @@ gboolean gst_tree_stereo_match_method_from_string (const gchar *s,
 /* "colour", "tree", "row"; NULL for an unknown mode. */
 const gchar *gst_tree_stereo_canopy_mode_to_string (GstTreeStereoCanopyMode mode);
 gboolean gst_tree_stereo_canopy_mode_from_string (const gchar *s, GstTreeStereoCanopyMode *mode);
+/* "none", "stereo", "speed"; NULL for an unknown source. */
+const gchar *gst_tree_stereo_travel_source_to_string (GstTreeStereoTravelSource source);
+gboolean gst_tree_stereo_travel_source_from_string (const gchar *s,
+    GstTreeStereoTravelSource *source);
 
 G_END_DECLS
 
