@@ -92,10 +92,19 @@
 #include "elements.hpp"
 
 #include "treestereo/metrics.hpp"
+#include "treestereo/rowmap.hpp"
+#include "treestereo/rowtrack.hpp"
+#include "treestereo/travel.hpp"
 
 #include <gst/base/gstbasetransform.h>
 
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <memory>
 #include <mutex>
+#include <string>
 #include <vector>
 
 GST_DEBUG_CATEGORY_STATIC(treemetrics_debug);
@@ -131,6 +140,11 @@ static GType gst_tree_metrics_extent_get_type(void)
 #define DEFAULT_BANDS 4
 #define DEFAULT_SMOOTHING 0.0
 #define DEFAULT_POST_MESSAGES TRUE
+#define DEFAULT_SPEED 0.0
+#define MAX_SPEED 100.0
+#define DEFAULT_TRAVEL TRUE
+#define DEFAULT_TREES TRUE
+#define DEFAULT_ROW_MAP_BIN 0.05
 /* lib's MetricsSmoother takes alpha in [0, 1) */
 #define MAX_SMOOTHING 0.99
 
@@ -142,6 +156,11 @@ enum {
   PROP_ROUND_LIMBS,
   PROP_EXTREME_POINTS,
   PROP_POST_MESSAGES,
+  PROP_SPEED,
+  PROP_TRAVEL,
+  PROP_TREES,
+  PROP_ROW_MAP_LOCATION,
+  PROP_ROW_MAP_BIN,
 };
 
 namespace {
@@ -153,6 +172,24 @@ struct Settings {
   bool round_limbs = MetricsParams{}.round_limbs;
   guint extreme_points = guint(MetricsParams{}.extreme_points);
   bool post_messages = DEFAULT_POST_MESSAGES;
+  double speed = DEFAULT_SPEED; // m/s; > 0: the travel is speed x the time between frames
+  bool travel = DEFAULT_TRAVEL; // estimate the travel from stereo when speed is 0
+  bool trees = DEFAULT_TREES;
+  std::string row_map_location; // empty: no row map
+  double row_map_bin = DEFAULT_ROW_MAP_BIN;
+};
+
+/* Along the row: the travel's previous frame, the position, the tree tracker and the row map.
+ * Reset when a new stream starts. */
+struct Along {
+  cv::Mat prev_left, prev_right; // grey copies of the previous frame's rectified views
+  bool has_prev_pts = false;
+  GstClockTime prev_pts = GST_CLOCK_TIME_NONE;
+  double position_mm = 0;
+  std::unique_ptr<TreeTracker> tracker;
+  std::vector<TreeRecord> records; // every record posted, drawn on the row map's picture
+  std::unique_ptr<RowMap> row_map;
+  GstTreeStereoTimes last_times{GST_CLOCK_TIME_NONE, GST_CLOCK_TIME_NONE, GST_CLOCK_TIME_NONE};
 };
 
 struct State {
@@ -161,6 +198,10 @@ struct State {
   // streaming thread only
   MetricsSmoother smoother;
   bool warned_missing = false;
+  GstVideoInfo info{};
+  bool info_set = false;
+  Along along;
+  bool warned_travel = false; // the travel estimate could not run on this stream (said once)
 };
 
 /* GstTreeStereoMetrics that frees its bands. */
@@ -230,6 +271,227 @@ static void warn_missing(GstTreeMetrics *self, bool veg, bool points)
                        points ? "present" : "missing"));
 }
 
+/* Posts one "treestereo-tree" message per record (no lock held) and keeps the records for the
+ * row map's picture. */
+static void post_records(GstTreeMetrics *self, const std::vector<TreeRecord> &records,
+                         const GstTreeStereoTimes *times)
+{
+  State *st = self->state;
+  for (const TreeRecord &r : records) {
+    GST_DEBUG_OBJECT(self, "tree %d leaves: %.3f..%.3f m, %d frames%s", r.id, r.start_m, r.end_m,
+                     r.frames, r.complete ? "" : " (incomplete)");
+    GstTreeStereoTreeRecord g{};
+    treestereo::gst::record_to_gst(r, &g);
+    treestereo::gst::post_element_message(GST_ELEMENT(self),
+                                          gst_tree_stereo_tree_message_structure(&g, times));
+    gst_tree_stereo_tree_record_clear(&g);
+    st->along.records.push_back(r);
+  }
+}
+
+/* The records of the trees still in view: the stream ends (or jumps), none of them will be seen
+ * leaving. */
+static void finish_trees(GstTreeMetrics *self)
+{
+  Along &a = self->state->along;
+  if (!a.tracker)
+    return;
+  std::vector<TreeRecord> left;
+  treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
+    left = a.tracker->finish();
+    return true;
+  });
+  post_records(self, left, &a.last_times);
+}
+
+/* A new stream: the position starts at 0, tree ids at 1, the row map empty. */
+static void reset_along(GstTreeMetrics *self)
+{
+  self->state->along = Along();
+  self->state->warned_travel = false;
+}
+
+/* The travel since the previous frame (mm) and where it came from. Keeps this frame's grey views
+ * for the next one when the stereo estimate is on. */
+static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *buf,
+                                             const Settings &s, const StereoGeometry &geometry,
+                                             const GstTreeStereoCanopyMeta *canopy,
+                                             const GstTreeStereoPointsMeta *pm, double &travel_mm)
+{
+  State *st = self->state;
+  Along &a = st->along;
+  travel_mm = 0;
+  const GstClockTime pts = GST_BUFFER_PTS(buf);
+  const bool had_pts = a.has_prev_pts && GST_CLOCK_TIME_IS_VALID(pts);
+  const GstClockTime prev_pts = a.prev_pts;
+  a.has_prev_pts = GST_CLOCK_TIME_IS_VALID(pts);
+  a.prev_pts = pts;
+
+  if (s.speed > 0) {
+    // The application's speed (wheel odometry, GNSS) wins; the stereo views kept so far would
+    // be stale when it is set back to 0.
+    a.prev_left.release();
+    a.prev_right.release();
+    if (!had_pts)
+      return GST_TREE_STEREO_TRAVEL_NONE; // the first frame: no time has passed
+    const double dt_s = double(GST_CLOCK_DIFF(prev_pts, pts)) / double(GST_SECOND);
+    travel_mm = s.speed * dt_s * 1000.0;
+    return GST_TREE_STEREO_TRAVEL_SPEED;
+  }
+  if (!s.travel) {
+    a.prev_left.release();
+    a.prev_right.release();
+    return GST_TREE_STEREO_TRAVEL_NONE;
+  }
+  if (!st->info_set || treestereo::gst::n_views_of(&st->info) != 2) {
+    if (!st->warned_travel) {
+      st->warned_travel = true;
+      GST_ELEMENT_WARNING(self, STREAM, FAILED,
+                          ("treemetrics cannot measure the travel: the frames do not hold both "
+                           "views side by side. Set the speed property, or travel=false."),
+                          ("caps %s", st->info_set ? "with one view" : "not set"));
+    }
+    return GST_TREE_STEREO_TRAVEL_NONE;
+  }
+  treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
+  if (!frame.ok())
+    throw std::runtime_error("treemetrics: could not map the frame for the travel estimate");
+  const cv::Mat mat = frame.mat();
+  const treestereo::gst::PixelLayout layout =
+      treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info));
+  // Grey copies: the next frame compares with these after this buffer has gone downstream.
+  cv::Mat left = treestereo::gst::gray_view(treestereo::gst::view_mat(mat, 0, 2), layout);
+  cv::Mat right = treestereo::gst::gray_view(treestereo::gst::view_mat(mat, 1, 2), layout);
+  if (!layout.color) {
+    left = left.clone();
+    right = right.clone();
+  }
+  GstTreeStereoTravelSource source = GST_TREE_STEREO_TRAVEL_NONE;
+  if (!a.prev_left.empty() && a.prev_left.size() == left.size() && pm) {
+    const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
+    const std::vector<PixelPoint> points =
+        treestereo::gst::pixel_points_of(pm, mm, guint(geometry.view_size.width));
+    const auto t0 = std::chrono::steady_clock::now();
+    const Motion m = estimate_motion(a.prev_left, a.prev_right, left, right, points, geometry,
+                                     TravelParams(), treestereo::gst::ground_from_meta(canopy));
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    GST_DEBUG_OBJECT(self,
+                     "travel %s: %.1f mm (%zu points, %zu tracked, %zu inliers, %.2f px) in "
+                     "%.1f ms",
+                     m.found ? "found" : "not found", m.travel_mm, m.points, m.tracked, m.inliers,
+                     m.rms_px, ms);
+    if (m.found && std::isfinite(m.travel_mm)) {
+      travel_mm = m.travel_mm;
+      source = GST_TREE_STEREO_TRAVEL_STEREO;
+    }
+  }
+  a.prev_left = left;
+  a.prev_right = right;
+  return source;
+}
+
+/* The trees along the row (tree records) and the row map, fed with this frame. */
+static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, const Settings &s,
+                                          const StereoGeometry &geometry,
+                                          const GstTreeStereoCanopyMeta *canopy,
+                                          const GstTreeStereoPointsMeta *pm, const TreeMetrics &m)
+{
+  Along &a = self->state->along;
+  std::vector<TreeRecord> out;
+  if (!canopy || (canopy->mode != GST_TREE_STEREO_CANOPY_TREE &&
+                  canopy->mode != GST_TREE_STEREO_CANOPY_ROW))
+    return out; // the colour silhouette says nothing of the row
+  const CanopyMode mode =
+      canopy->mode == GST_TREE_STEREO_CANOPY_ROW ? CanopyMode::Row : CanopyMode::Tree;
+  if (s.trees) {
+    if (a.tracker && a.tracker->params().mode != mode) {
+      out = a.tracker->finish(); // stereodepth's canopy mode changed: the tracks were another's
+      a.tracker.reset();
+    }
+    if (!a.tracker) {
+      TrackerParams tp;
+      tp.mode = mode;
+      a.tracker = std::make_unique<TreeTracker>(tp);
+    }
+    TrackFrame f;
+    f.position_mm = a.position_mm;
+    view_slopes(geometry, f.left_slope, f.right_slope);
+    f.segments = treestereo::gst::segments_from_meta(canopy);
+    // The metrics describe the selected canopy: one segment (the tree in front; in mode row
+    // only when the canopy is one segment, else they span several canopies).
+    int selected = -1, n_selected = 0;
+    for (std::size_t i = 0; i < f.segments.size(); i++)
+      if (f.segments[i].selected) {
+        if (selected < 0)
+          selected = int(i);
+        n_selected++;
+      }
+    if (m.tree_present && n_selected == 1) {
+      f.metrics = m;
+      f.measured_segment = selected;
+    }
+    std::vector<TreeRecord> r = a.tracker->update(f);
+    out.insert(out.end(), r.begin(), r.end());
+  }
+  if (!s.row_map_location.empty() && canopy->ground_found) {
+    if (!a.row_map) {
+      RowMapParams rp;
+      rp.bin_mm = s.row_map_bin * 1000.0;
+      a.row_map = std::make_unique<RowMap>(rp);
+    }
+    const treestereo::gst::MappedSilhouette sil(&canopy->view);
+    cv::Mat mask = sil.get().mask;
+    if (mask.empty() || mask.size() != geometry.view_size)
+      mask = cv::Mat::zeros(geometry.view_size, CV_8U); // no canopy in view: all seen empty
+    const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
+    a.row_map->add_frame(mask,
+                         treestereo::gst::pixel_points_of(pm, mm, guint(geometry.view_size.width)),
+                         geometry, treestereo::gst::ground_from_meta(canopy), a.position_mm);
+  }
+  return out;
+}
+
+/* At EOS: the row map's CSV at row-map-location and its picture beside it (.png). */
+static bool write_row_map(GstTreeMetrics *self, const std::string &location)
+{
+  Along &a = self->state->along;
+  std::string png = location;
+  const std::size_t slash = png.find_last_of('/');
+  const std::size_t dot = png.find_last_of('.');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash))
+    png.erase(dot);
+  png += ".png";
+  std::string failed;
+  try {
+    failed = location;
+    if (a.row_map && !a.row_map->empty()) {
+      a.row_map->write_csv(location);
+      failed = png;
+      a.row_map->write_png(png, a.records);
+    } else {
+      // No frame with a canopy and a ground plane: the header alone, no picture.
+      std::ofstream f(location);
+      f << "position_m,band,present,distance_m,fill\n";
+      f.flush();
+      if (!f)
+        throw std::runtime_error("cannot write " + location + ": " + g_strerror(errno));
+      GST_ELEMENT_WARNING(self, STREAM, FAILED,
+                          ("The row map is empty (no frame had a 3D canopy with a ground plane): "
+                           "\"%s\" holds the header alone, no picture written.",
+                           location.c_str()),
+                          (nullptr));
+    }
+  } catch (const std::exception &e) {
+    GST_ELEMENT_ERROR(self, RESOURCE, OPEN_WRITE,
+                      ("Could not write the row map to \"%s\".", failed.c_str()),
+                      ("%s", e.what()));
+    return false;
+  }
+  GST_INFO_OBJECT(self, "row map written to %s and %s", location.c_str(), png.c_str());
+  return true;
+}
+
 static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstBuffer *buf)
 {
   GstTreeMetrics *self = GST_TREE_METRICS(trans);
@@ -255,7 +517,9 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
     warn_missing(self, silhouette != nullptr, pm != nullptr);
 
   GstMetrics raw, smoothed;
+  std::vector<TreeRecord> records;
   const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
+    const StereoGeometry geometry = treestereo::gst::geometry_from_meta(gm);
     TreeMetrics m; // no tree unless a silhouette and the points are there
     if (silhouette && pm) {
       MetricsParams p;
@@ -264,17 +528,30 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
       p.round_limbs = s.round_limbs;
       p.extreme_points = int(s.extreme_points);
       const treestereo::gst::MappedSilhouette sil(silhouette);
-      m = compute_tree_metrics(sil.get(), points_of(pm), treestereo::gst::geometry_from_meta(gm),
-                               p);
+      m = compute_tree_metrics(sil.get(), points_of(pm), geometry, p);
     }
     if (st->smoother.alpha() != s.smoothing)
       st->smoother = MetricsSmoother(s.smoothing);
     treestereo::gst::metrics_to_gst(m, &raw.m, mode);
     treestereo::gst::metrics_to_gst(st->smoother.update(m), &smoothed.m, mode);
+
+    // The rig's travel along the row; a frame whose travel is unknown keeps the position.
+    double travel_mm = 0;
+    const GstTreeStereoTravelSource source =
+        frame_travel(self, buf, s, geometry, canopy, pm, travel_mm);
+    st->along.position_mm += travel_mm;
+    for (GstTreeStereoMetrics *out : {&raw.m, &smoothed.m}) {
+      out->travel_m = travel_mm * 1e-3;
+      out->position_m = st->along.position_mm * 1e-3;
+      out->travel_source = guint(source);
+    }
+    records = follow_row(self, buf, s, geometry, canopy, pm, m);
     return true;
   });
   if (!ok)
     return GST_FLOW_ERROR;
+  gst_tree_stereo_times_from_buffer(&st->along.last_times, buf, &trans->segment);
+  post_records(self, records, &st->along.last_times);
 
   GstTreeStereoMetricsMeta *meta = gst_buffer_add_tree_stereo_metrics_meta(buf, &raw.m, &smoothed.m);
   GST_LOG_OBJECT(self, "tree %d, distance %.3f m, width %.3f m, height %.3f m",
@@ -295,13 +572,58 @@ static gboolean gst_tree_metrics_start(GstBaseTransform *trans)
   GstTreeMetrics *self = GST_TREE_METRICS(trans);
   self->state->smoother.reset();
   self->state->warned_missing = false;
+  self->state->info_set = false;
+  reset_along(self);
+  return TRUE;
+}
+
+static gboolean gst_tree_metrics_set_caps(GstBaseTransform *trans, GstCaps *incaps, GstCaps *)
+{
+  GstTreeMetrics *self = GST_TREE_METRICS(trans);
+  State *st = self->state;
+  GstVideoInfo info;
+  if (!gst_video_info_from_caps(&info, incaps)) {
+    GST_ERROR_OBJECT(self, "invalid caps %" GST_PTR_FORMAT, incaps);
+    return FALSE;
+  }
+  // Other views (size, format, layout): the previous frame cannot be compared with the next.
+  if (!st->info_set || !gst_video_info_is_equal(&info, &st->info)) {
+    st->along.prev_left.release();
+    st->along.prev_right.release();
+  }
+  st->info = info;
+  st->info_set = true;
   return TRUE;
 }
 
 static gboolean gst_tree_metrics_sink_event(GstBaseTransform *trans, GstEvent *event)
 {
-  if (GST_EVENT_TYPE(event) == GST_EVENT_FLUSH_STOP)
-    GST_TREE_METRICS(trans)->state->smoother.reset(); // a seek: the previous frames are history
+  GstTreeMetrics *self = GST_TREE_METRICS(trans);
+  State *st = self->state;
+  switch (GST_EVENT_TYPE(event)) {
+  case GST_EVENT_FLUSH_STOP:
+    // A seek: the previous frames are history. The trees in view are closed (their frames no
+    // longer follow); the position keeps counting from where it was.
+    st->smoother.reset();
+    st->along.prev_left.release();
+    st->along.prev_right.release();
+    st->along.has_prev_pts = false;
+    finish_trees(self);
+    st->along.tracker.reset();
+    break;
+  case GST_EVENT_STREAM_START:
+    reset_along(self); // a new stream starts at position 0, tree 1, an empty row map
+    break;
+  case GST_EVENT_EOS: {
+    // The trees still in view are posted, and the row map written, before EOS goes on.
+    finish_trees(self);
+    const Settings s = snapshot(self);
+    if (!s.row_map_location.empty())
+      write_row_map(self, s.row_map_location);
+    break;
+  }
+  default: break;
+  }
   return GST_BASE_TRANSFORM_CLASS(gst_tree_metrics_parent_class)->sink_event(trans, event);
 }
 
@@ -318,6 +640,15 @@ static void gst_tree_metrics_set_property(GObject *object, guint prop_id, const 
   case PROP_ROUND_LIMBS: s.round_limbs = g_value_get_boolean(value); break;
   case PROP_EXTREME_POINTS: s.extreme_points = g_value_get_uint(value); break;
   case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
+  case PROP_SPEED: s.speed = g_value_get_double(value); break;
+  case PROP_TRAVEL: s.travel = g_value_get_boolean(value); break;
+  case PROP_TREES: s.trees = g_value_get_boolean(value); break;
+  case PROP_ROW_MAP_LOCATION: {
+    const gchar *v = g_value_get_string(value);
+    s.row_map_location = v ? v : "";
+    break;
+  }
+  case PROP_ROW_MAP_BIN: s.row_map_bin = g_value_get_double(value); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
 }
@@ -335,6 +666,13 @@ static void gst_tree_metrics_get_property(GObject *object, guint prop_id, GValue
   case PROP_ROUND_LIMBS: g_value_set_boolean(value, s.round_limbs); break;
   case PROP_EXTREME_POINTS: g_value_set_uint(value, s.extreme_points); break;
   case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
+  case PROP_SPEED: g_value_set_double(value, s.speed); break;
+  case PROP_TRAVEL: g_value_set_boolean(value, s.travel); break;
+  case PROP_TREES: g_value_set_boolean(value, s.trees); break;
+  case PROP_ROW_MAP_LOCATION:
+    g_value_set_string(value, s.row_map_location.empty() ? nullptr : s.row_map_location.c_str());
+    break;
+  case PROP_ROW_MAP_BIN: g_value_set_double(value, s.row_map_bin); break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
 }
@@ -401,6 +739,40 @@ static void gst_tree_metrics_class_init(GstTreeMetricsClass *klass)
                            "Post a 'treemetrics' element message per buffer",
                            DEFAULT_POST_MESSAGES, RW_PLAYING));
 
+  g_object_class_install_property(
+      gobject_class, PROP_SPEED,
+      g_param_spec_double("speed", "Speed",
+                          "The rig's speed along the row (m/s, towards the camera's +x) from "
+                          "wheel odometry or GNSS: when > 0 the travel is speed x the time "
+                          "between the frames' timestamps; 0 = measure it from stereo",
+                          0.0, MAX_SPEED, DEFAULT_SPEED, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_TRAVEL,
+      g_param_spec_boolean("travel", "Travel",
+                           "Estimate the rig's travel between frames from stereo when speed is "
+                           "0 (about 13 ms a frame at 1296x972); false: no travel (source none)",
+                           DEFAULT_TRAVEL, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_TREES,
+      g_param_spec_boolean("trees", "Trees",
+                           "Follow the trees along the row (stereodepth's 3D canopy) and post a "
+                           "'treestereo-tree' message per tree as it leaves the view (and the "
+                           "ones in view at EOS)",
+                           DEFAULT_TREES, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_ROW_MAP_LOCATION,
+      g_param_spec_string("row-map-location", "Row map location",
+                          "Write the row map (CSV: position_m, band, present, distance_m, fill) "
+                          "here at EOS, and its picture beside it (same name, .png); NULL = no "
+                          "row map. Set before the stream starts.",
+                          nullptr, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_ROW_MAP_BIN,
+      g_param_spec_double("row-map-bin", "Row map bin",
+                          "Travel bin of the row map along the row (m); read when the map "
+                          "starts (the stream's first frame with a canopy)",
+                          0.005, 10.0, DEFAULT_ROW_MAP_BIN, RW_PLAYING));
+
   gst_element_class_add_static_pad_template(element_class, &sink_template);
   gst_element_class_add_static_pad_template(element_class, &src_template);
   gst_element_class_set_static_metadata(
@@ -413,6 +785,7 @@ static void gst_tree_metrics_class_init(GstTreeMetricsClass *klass)
 
   bt_class->start = gst_tree_metrics_start;
   bt_class->sink_event = gst_tree_metrics_sink_event;
+  bt_class->set_caps = gst_tree_metrics_set_caps;
   bt_class->transform_ip = gst_tree_metrics_transform_ip;
 }
 
