@@ -253,6 +253,10 @@ fill_metrics (GstTreeStereoMetrics * m, gdouble k)
   m->n_matches = 400;
   m->confidence = 0.93 * k;
   m->canopy_mode = GST_TREE_STEREO_CANOPY_TREE;
+  /* one travel per frame, raw and smoothed alike */
+  m->travel_m = 0.1425;
+  m->position_m = 3.5;
+  m->travel_source = GST_TREE_STEREO_TRAVEL_STEREO;
   gst_tree_stereo_metrics_set_n_bands (m, 4);
   for (guint i = 0; i < 4; i++) {
     m->bands[i].present = i != 2;
@@ -284,6 +288,9 @@ assert_metrics_equal (const GstTreeStereoMetrics * a, const GstTreeStereoMetrics
   fail_unless_equals_int (a->n_matches, b->n_matches);
   fail_unless_equals_float (a->confidence, b->confidence);
   fail_unless_equals_int (a->canopy_mode, b->canopy_mode);
+  fail_unless_equals_float (a->travel_m, b->travel_m);
+  fail_unless_equals_float (a->position_m, b->position_m);
+  fail_unless_equals_int (a->travel_source, b->travel_source);
   fail_unless_equals_int (a->n_bands, b->n_bands);
   for (guint i = 0; i < a->n_bands; i++)
     fail_unless_equals_float (a->bands[i].fill, b->bands[i].fill);
@@ -367,6 +374,8 @@ GST_START_TEST (test_metrics_message_round_trip)
   fail_unless (strstr (str, "confidence=(double)0.9") != NULL);
   fail_unless (strstr (str, "smoothed-confidence=(double)") != NULL);
   fail_unless (strstr (str, "fill\\=\\(double\\)0.") != NULL);
+  fail_unless (strstr (str, "travel-source=(string)stereo") != NULL);
+  fail_unless (strstr (str, "smoothed-travel") == NULL);
   g_free (str);
   fail_unless (gst_tree_stereo_metrics_message_parse (s, &r2, &s2, &t2));
   assert_metrics_equal (&r2, &raw);
@@ -384,12 +393,25 @@ GST_START_TEST (test_metrics_message_round_trip)
     gst_structure_set (c, "canopy-mode", G_TYPE_STRING, "bogus", NULL);
     fail_if (gst_tree_stereo_metrics_message_parse (c, &r2, NULL, NULL));
     gst_structure_free (c);
+    c = gst_structure_copy (s);
+    gst_structure_set (c, "travel-source", G_TYPE_STRING, "bogus", NULL);
+    fail_if (gst_tree_stereo_metrics_message_parse (c, &r2, NULL, NULL));
+    gst_structure_free (c);
+    c = gst_structure_copy (s);
+    gst_structure_remove_field (c, "position-m");
+    fail_if (gst_tree_stereo_metrics_message_parse (c, &r2, NULL, NULL));
+    gst_structure_free (c);
   }
   gst_structure_free (s);
 
-  /* absent tree: no figures at all, and parsing gives zeros, not stale values */
+  /* absent tree: no figures at all, and parsing gives zeros, not stale values; the travel is
+   * there all the same (the rig moves between trees) */
   gst_tree_stereo_metrics_clear (&raw);
+  raw.travel_m = 0.25;
+  raw.position_m = 7.0;
+  raw.travel_source = GST_TREE_STEREO_TRAVEL_SPEED;
   s = gst_tree_stereo_metrics_message_structure (&raw, NULL, NULL);
+  fail_unless_equals_string (gst_structure_get_string (s, "travel-source"), "speed");
   fail_unless (!gst_structure_has_field (s, "distance"));
   fail_unless (!gst_structure_has_field (s, "bands"));
   fail_unless (!gst_structure_has_field (s, "confidence"));
@@ -399,8 +421,13 @@ GST_START_TEST (test_metrics_message_round_trip)
   fail_unless_equals_float (r2.distance_m, 0.0);
   fail_unless_equals_float (r2.confidence, 0.0);
   fail_unless (r2.bands == NULL);
+  fail_unless_equals_float (r2.travel_m, 0.25);
+  fail_unless_equals_float (r2.position_m, 7.0);
+  fail_unless_equals_int (r2.travel_source, GST_TREE_STEREO_TRAVEL_SPEED);
   fail_unless_equals_uint64 (t2.timestamp, GST_CLOCK_TIME_NONE);
   gst_structure_free (s);
+  raw.travel_m = raw.position_m = 0;
+  raw.travel_source = GST_TREE_STEREO_TRAVEL_NONE;
 
   /* absent tree in a 3D canopy mode: the mode still says what was looked for */
   raw.canopy_mode = GST_TREE_STEREO_CANOPY_ROW;
@@ -456,6 +483,14 @@ fill_canopy (GstTreeStereoCanopyMeta * c, GstBuffer * mask)
   c->n_points = 900;
   c->n_canopy_points = 610;
   c->n_seam_pixels = 77;
+  c->n_stored_segments = 3;
+  for (guint i = 0; i < 3; i++) {
+    c->segments[i].lo_m = -1.5 + 1.1 * i;
+    c->segments[i].hi_m = -0.9 + 1.1 * i;
+    c->segments[i].near_m = 1.8 + 0.05 * i;
+    c->segments[i].n_points = 100 + i;
+    c->segments[i].selected = i == 1;
+  }
 }
 
 static void
@@ -475,6 +510,14 @@ assert_canopy_figures_equal (const GstTreeStereoCanopyMeta * a, const GstTreeSte
   fail_unless_equals_int (a->n_points, b->n_points);
   fail_unless_equals_int (a->n_canopy_points, b->n_canopy_points);
   fail_unless_equals_int (a->n_seam_pixels, b->n_seam_pixels);
+  fail_unless_equals_int (a->n_stored_segments, b->n_stored_segments);
+  for (guint i = 0; i < a->n_stored_segments; i++) {
+    fail_unless_equals_float (a->segments[i].lo_m, b->segments[i].lo_m);
+    fail_unless_equals_float (a->segments[i].hi_m, b->segments[i].hi_m);
+    fail_unless_equals_float (a->segments[i].near_m, b->segments[i].near_m);
+    fail_unless_equals_int (a->segments[i].n_points, b->segments[i].n_points);
+    fail_unless_equals_int (a->segments[i].selected, b->segments[i].selected);
+  }
 }
 
 GST_START_TEST (test_canopy_meta)
@@ -538,6 +581,137 @@ GST_START_TEST (test_canopy_meta)
   gst_buffer_unref (scaled);
   gst_buffer_unref (copy);
   gst_buffer_unref (buf);
+}
+
+GST_END_TEST;
+
+static void
+fill_record (GstTreeStereoTreeRecord * r)
+{
+  r->id = 7;
+  r->mode = GST_TREE_STEREO_CANOPY_TREE;
+  r->complete = TRUE;
+  r->start_seen = TRUE;
+  r->end_seen = TRUE;
+  r->position_m = 12.345;
+  r->start_m = 12.0;
+  r->end_m = 12.69;
+  r->has_height = TRUE;
+  r->height_m = 0.91;
+  r->has_width = TRUE;
+  r->width_m = 0.69;
+  r->has_depth = TRUE;
+  r->distance_m = 1.86;
+  r->thickness_m = 0.3;
+  r->confidence = 0.97;
+  gst_tree_stereo_tree_record_set_n_bands (r, 3);
+  for (guint i = 0; i < 3; i++) {
+    r->bands[i].present = i != 1;
+    r->bands[i].top_m = -0.45 + 0.3 * i;
+    r->bands[i].bottom_m = -0.15 + 0.3 * i;
+    r->bands[i].left_m = 12.05;
+    r->bands[i].right_m = 12.6 - 0.01 * i;
+    r->bands[i].width_m = 0.55 - 0.01 * i;
+    r->bands[i].depth_m = 1.77;
+    r->bands[i].fill = i != 1 ? 0.9 : 0.0;
+  }
+  r->frames = 4;
+  r->frames_seen = 11;
+  r->has_spacing = TRUE;
+  r->spacing_m = 1.06;
+  r->gap_m = 0.4;
+  r->lost = FALSE;
+}
+
+static void
+assert_records_equal (const GstTreeStereoTreeRecord * a, const GstTreeStereoTreeRecord * b)
+{
+  fail_unless_equals_int (a->id, b->id);
+  fail_unless_equals_int (a->mode, b->mode);
+  fail_unless_equals_int (a->complete, b->complete);
+  fail_unless_equals_int (a->start_seen, b->start_seen);
+  fail_unless_equals_int (a->end_seen, b->end_seen);
+  fail_unless_equals_float (a->position_m, b->position_m);
+  fail_unless_equals_float (a->start_m, b->start_m);
+  fail_unless_equals_float (a->end_m, b->end_m);
+  fail_unless_equals_int (a->has_height, b->has_height);
+  fail_unless_equals_float (a->height_m, b->height_m);
+  fail_unless_equals_int (a->has_width, b->has_width);
+  fail_unless_equals_float (a->width_m, b->width_m);
+  fail_unless_equals_int (a->has_depth, b->has_depth);
+  fail_unless_equals_float (a->distance_m, b->distance_m);
+  fail_unless_equals_float (a->thickness_m, b->thickness_m);
+  fail_unless_equals_float (a->confidence, b->confidence);
+  fail_unless_equals_int (a->n_bands, b->n_bands);
+  if (a->n_bands)
+    fail_unless (memcmp (a->bands, b->bands, sizeof (GstTreeStereoBand) * a->n_bands) == 0);
+  fail_unless_equals_int (a->frames, b->frames);
+  fail_unless_equals_int (a->frames_seen, b->frames_seen);
+  fail_unless_equals_int (a->has_spacing, b->has_spacing);
+  fail_unless_equals_float (a->spacing_m, b->spacing_m);
+  fail_unless_equals_float (a->gap_m, b->gap_m);
+  fail_unless_equals_int (a->lost, b->lost);
+}
+
+GST_START_TEST (test_tree_message_round_trip)
+{
+  GstTreeStereoTreeRecord r = { 0 }, back = { 0 };
+  GstTreeStereoTimes t = { 5 * GST_SECOND, 4 * GST_SECOND, 3 * GST_SECOND }, t2;
+  GstStructure *s, *c;
+  gchar *str;
+
+  fill_record (&r);
+  s = gst_tree_stereo_tree_message_structure (&r, &t);
+  fail_unless (gst_structure_has_name (s, GST_TREE_STEREO_MESSAGE_TREE));
+  fail_unless_equals_string (GST_TREE_STEREO_MESSAGE_TREE, "treestereo-tree");
+  str = gst_structure_to_string (s);
+  fail_unless (strstr (str, "position-m=(double)12.345") != NULL, "%s", str);
+  fail_unless (strstr (str, "segment=(boolean)false") != NULL, "%s", str);
+  fail_unless (strstr (str, "canopy-mode=(string)tree") != NULL, "%s", str);
+  g_free (str);
+  fail_unless (gst_tree_stereo_tree_message_parse (s, &back, &t2));
+  assert_records_equal (&back, &r);
+  fail_unless_equals_uint64 (t2.timestamp, t.timestamp);
+  fail_unless_equals_uint64 (t2.running_time, t.running_time);
+  /* malformed: a required field missing, a wrong type, another message */
+  c = gst_structure_copy (s);
+  gst_structure_remove_field (c, "end-m");
+  fail_if (gst_tree_stereo_tree_message_parse (c, &back, NULL));
+  gst_structure_free (c);
+  c = gst_structure_copy (s);
+  gst_structure_set (c, "height-m", G_TYPE_STRING, "tall", NULL);
+  fail_if (gst_tree_stereo_tree_message_parse (c, &back, NULL));
+  gst_structure_set_name (c, "treemetrics");
+  fail_if (gst_tree_stereo_tree_message_parse (c, &back, NULL));
+  gst_structure_free (c);
+  gst_structure_free (s);
+
+  /* a canopy segment of a hedgerow, first record, never fully in view: what it lacks is
+   * absent, and parsing gives the has_ flags FALSE with zeros, not the previous parse's values */
+  gst_tree_stereo_tree_record_clear (&r);
+  r.id = 1;
+  r.mode = GST_TREE_STEREO_CANOPY_ROW;
+  r.start_seen = TRUE;
+  r.position_m = 0.5;
+  r.start_m = -0.2;
+  r.end_m = 1.2;
+  r.frames_seen = 3;
+  s = gst_tree_stereo_tree_message_structure (&r, NULL);
+  fail_unless (!gst_structure_has_field (s, "height-m"));
+  fail_unless (!gst_structure_has_field (s, "distance-m"));
+  fail_unless (!gst_structure_has_field (s, "bands"));
+  fail_unless (!gst_structure_has_field (s, "spacing-m"));
+  fail_unless (gst_tree_stereo_tree_message_parse (s, &back, &t2));
+  assert_records_equal (&back, &r);
+  fail_unless (back.bands == NULL);
+  fail_unless_equals_uint64 (t2.timestamp, GST_CLOCK_TIME_NONE);
+  {
+    gboolean segment = FALSE;
+    fail_unless (gst_structure_get_boolean (s, "segment", &segment) && segment);
+  }
+  gst_structure_free (s);
+  gst_tree_stereo_tree_record_clear (&back);
+  gst_tree_stereo_tree_record_clear (&r);
 }
 
 GST_END_TEST;
@@ -729,6 +903,18 @@ GST_START_TEST (test_enum_names)
     fail_unless_equals_string (gst_tree_stereo_canopy_mode_to_string
         (GST_TREE_STEREO_CANOPY_ROW), "row");
     fail_unless (gst_tree_stereo_canopy_mode_to_string (3) == NULL);
+    {
+      GstTreeStereoTravelSource ts;
+      fail_unless_equals_string (gst_tree_stereo_travel_source_to_string
+          (GST_TREE_STEREO_TRAVEL_NONE), "none");
+      fail_unless_equals_string (gst_tree_stereo_travel_source_to_string
+          (GST_TREE_STEREO_TRAVEL_STEREO), "stereo");
+      fail_unless (gst_tree_stereo_travel_source_to_string (3) == NULL);
+      fail_unless (gst_tree_stereo_travel_source_from_string ("speed", &ts));
+      fail_unless_equals_int (ts, GST_TREE_STEREO_TRAVEL_SPEED);
+      fail_if (gst_tree_stereo_travel_source_from_string ("gnss", &ts));
+      fail_if (gst_tree_stereo_travel_source_from_string (NULL, &ts));
+    }
     fail_unless (gst_tree_stereo_canopy_mode_from_string ("row", &cm));
     fail_unless_equals_int (cm, GST_TREE_STEREO_CANOPY_ROW);
     fail_if (gst_tree_stereo_canopy_mode_from_string ("color", &cm));
@@ -758,6 +944,7 @@ meta_suite (void)
   tcase_add_test (tc, test_metrics_message_round_trip);
   tcase_add_test (tc, test_canopy_meta);
   tcase_add_test (tc, test_canopy_message_round_trip);
+  tcase_add_test (tc, test_tree_message_round_trip);
   tcase_add_test (tc, test_other_messages_round_trip);
   tcase_add_test (tc, test_times_from_buffer);
   tcase_add_test (tc, test_enum_names);
