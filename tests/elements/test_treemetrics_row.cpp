@@ -1,0 +1,510 @@
+/* treemetrics along the row: the rig's travel (the speed property, the stereo estimate), the
+ * tree records ("treestereo-tree" messages) and the row map written at EOS.
+ *
+ * The speed, the switches and the row map's errors run on pushed buffers (GstHarness); the
+ * stereo travel, the records and the map on treetestsrc's orchard through the whole chain,
+ * compared with the renderer's truth (its travel, SceneRenderer::row_trees()). */
+#include "treestereo/scene.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gst/check/gstcheck.h>
+#include <gst/check/gstharness.h>
+#include <gst/treestereo/treestereo-meta.h>
+#include <gst/video/video.h>
+
+using namespace treestereo;
+
+namespace {
+
+/* ---- pushed buffers ---- */
+
+const int kW = 32, kH = 8; // one view; the frame is 2 kW wide
+
+struct Harness {
+  GstHarness *h = nullptr;
+  GstBus *bus = nullptr;
+};
+
+Harness harness(const char *props)
+{
+  Harness r;
+  GstElement *e = gst_parse_bin_from_description(
+      (std::string("treemetrics name=m ") + props).c_str(), FALSE, nullptr);
+  fail_unless(e != nullptr);
+  gst_object_ref_sink(e);
+  GstElement *m = gst_bin_get_by_name(GST_BIN(e), "m");
+  gst_object_unref(e);
+  r.bus = gst_bus_new();
+  gst_element_set_bus(m, r.bus);
+  r.h = gst_harness_new_with_element(m, "sink", "src");
+  gst_object_unref(m);
+  gst_harness_set_src_caps_str(r.h, "video/x-raw,format=GRAY8,width=64,height=8,framerate=7/1,"
+                                    "multiview-mode=side-by-side");
+  return r;
+}
+
+void harness_free(Harness &r)
+{
+  gst_element_set_bus(r.h->element, nullptr);
+  gst_object_unref(r.bus);
+  gst_harness_teardown(r.h);
+}
+
+GstBuffer *frame(GstClockTime pts)
+{
+  GstBuffer *b = gst_buffer_new_allocate(nullptr, 2 * kW * kH, nullptr);
+  gst_buffer_memset(b, 0, 128, 2 * kW * kH);
+  GST_BUFFER_PTS(b) = pts;
+  GstTreeStereoGeometryMeta *g = gst_buffer_add_tree_stereo_geometry_meta(b);
+  g->view_width = kW;
+  g->view_height = kH;
+  g->side_by_side = TRUE;
+  g->rectified = TRUE;
+  g->fx[0] = g->fx[1] = g->fy[0] = g->fy[1] = 40;
+  g->cx[0] = g->cx[1] = kW / 2.0;
+  g->cy[0] = g->cy[1] = kH / 2.0;
+  g->baseline_mm = 50;
+  return b;
+}
+
+struct Travel {
+  double travel_m = -1, position_m = -1;
+  guint source = 99;
+};
+
+/* Pushes a frame; the travel of the metrics meta, checked against the message's. */
+Travel push(Harness &r, GstClockTime pts)
+{
+  GstBuffer *out = gst_harness_push_and_pull(r.h, frame(pts));
+  fail_unless(out != nullptr);
+  const GstTreeStereoMetricsMeta *mm = gst_buffer_get_tree_stereo_metrics_meta(out);
+  fail_unless(mm != nullptr);
+  Travel t{mm->metrics.travel_m, mm->metrics.position_m, mm->metrics.travel_source};
+  fail_unless_equals_float(mm->smoothed.position_m, t.position_m);
+  gst_buffer_unref(out);
+  GstMessage *msg;
+  bool seen = false;
+  while ((msg = gst_bus_pop(r.bus))) {
+    if (GST_MESSAGE_TYPE(msg) == GST_MESSAGE_ELEMENT && gst_message_has_name(msg, "treemetrics")) {
+      GstTreeStereoMetrics m{}, s{};
+      fail_unless(gst_tree_stereo_metrics_message_parse(gst_message_get_structure(msg), &m, &s,
+                                                        nullptr));
+      fail_unless_equals_float(m.travel_m, t.travel_m);
+      fail_unless_equals_float(m.position_m, t.position_m);
+      fail_unless_equals_int(m.travel_source, t.source);
+      fail_unless_equals_float(s.position_m, t.position_m);
+      gst_tree_stereo_metrics_clear(&m);
+      gst_tree_stereo_metrics_clear(&s);
+      seen = true;
+    }
+    gst_message_unref(msg);
+  }
+  fail_unless(seen, "no treemetrics message");
+  return t;
+}
+
+void expect(const Travel &t, double travel_m, double position_m, GstTreeStereoTravelSource src)
+{
+  fail_unless(std::fabs(t.travel_m - travel_m) < 1e-12, "travel %.15f, expected %.15f",
+              t.travel_m, travel_m);
+  fail_unless(std::fabs(t.position_m - position_m) < 1e-12, "position %.15f, expected %.15f",
+              t.position_m, position_m);
+  fail_unless_equals_int(t.source, src);
+}
+
+} // namespace
+
+GST_START_TEST(test_travel_from_speed)
+{
+  Harness r = harness("speed=0.5");
+  const GstClockTime ms = GST_MSECOND;
+  // The first frame: no time has passed, no travel.
+  expect(push(r, 0), 0, 0, GST_TREE_STEREO_TRAVEL_NONE);
+  // speed x the PTS difference.
+  expect(push(r, 100 * ms), 0.05, 0.05, GST_TREE_STEREO_TRAVEL_SPEED);
+  expect(push(r, 250 * ms), 0.075, 0.125, GST_TREE_STEREO_TRAVEL_SPEED);
+  // Changed while PLAYING (wheel odometry): the next frame uses the new speed.
+  g_object_set(r.h->element, "speed", 2.0, nullptr);
+  expect(push(r, 300 * ms), 0.1, 0.225, GST_TREE_STEREO_TRAVEL_SPEED);
+  // Back to 0 and the estimate off: no travel, said so; the position stays.
+  g_object_set(r.h->element, "speed", 0.0, "travel", FALSE, nullptr);
+  expect(push(r, 400 * ms), 0, 0.225, GST_TREE_STEREO_TRAVEL_NONE);
+  // The estimate on, but no points on the buffers: it cannot run; no wrong number.
+  g_object_set(r.h->element, "travel", TRUE, nullptr);
+  expect(push(r, 500 * ms), 0, 0.225, GST_TREE_STEREO_TRAVEL_NONE);
+  expect(push(r, 600 * ms), 0, 0.225, GST_TREE_STEREO_TRAVEL_NONE);
+  // A new stream starts at 0.
+  g_object_set(r.h->element, "speed", 0.5, nullptr);
+  fail_unless(gst_harness_push_event(r.h, gst_event_new_stream_start("second")));
+  expect(push(r, 700 * ms), 0, 0, GST_TREE_STEREO_TRAVEL_NONE);
+  expect(push(r, 900 * ms), 0.1, 0.1, GST_TREE_STEREO_TRAVEL_SPEED);
+  // A flush (a seek): no travel across it, the position kept.
+  fail_unless(gst_harness_push_event(r.h, gst_event_new_flush_start()));
+  fail_unless(gst_harness_push_event(r.h, gst_event_new_flush_stop(TRUE)));
+  GstSegment seg;
+  gst_segment_init(&seg, GST_FORMAT_TIME);
+  fail_unless(gst_harness_push_event(r.h, gst_event_new_segment(&seg)));
+  expect(push(r, 5000 * ms), 0, 0.1, GST_TREE_STEREO_TRAVEL_NONE);
+  expect(push(r, 5200 * ms), 0.1, 0.2, GST_TREE_STEREO_TRAVEL_SPEED);
+  harness_free(r);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_row_properties)
+{
+  GstElement *e = gst_element_factory_make("treemetrics", nullptr);
+  fail_unless(e != nullptr);
+  gdouble speed = -1, bin = -1;
+  gboolean travel = FALSE, trees = FALSE;
+  gchar *loc = (gchar *)"unset";
+  g_object_get(e, "speed", &speed, "travel", &travel, "trees", &trees, "row-map-location", &loc,
+               "row-map-bin", &bin, nullptr);
+  fail_unless_equals_float(speed, 0.0);
+  fail_unless(travel && trees);
+  fail_unless(loc == nullptr);
+  fail_unless_equals_float(bin, 0.05);
+  g_object_set(e, "speed", 1.25, "travel", FALSE, "trees", FALSE, "row-map-location", "/tmp/x.csv",
+               "row-map-bin", 0.1, nullptr);
+  g_object_get(e, "speed", &speed, "travel", &travel, "trees", &trees, "row-map-location", &loc,
+               "row-map-bin", &bin, nullptr);
+  fail_unless_equals_float(speed, 1.25);
+  fail_unless(!travel && !trees);
+  fail_unless_equals_string(loc, "/tmp/x.csv");
+  fail_unless_equals_float(bin, 0.1);
+  g_free(loc);
+  GParamSpec *ps = g_object_class_find_property(G_OBJECT_GET_CLASS(e), "speed");
+  fail_unless(ps->flags & GST_PARAM_MUTABLE_PLAYING);
+  gst_object_unref(e);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_row_map_bad_path_is_a_named_error)
+{
+  const char *path = "/nonexistent-treestereo-dir/map.csv";
+  Harness r = harness((std::string("row-map-location=") + path).c_str());
+  push(r, 0);
+  gst_harness_push_event(r.h, gst_event_new_eos());
+  GstMessage *m = gst_bus_pop_filtered(r.bus, GST_MESSAGE_ERROR);
+  fail_unless(m != nullptr, "no error for an unwritable row map");
+  GError *err = nullptr;
+  gst_message_parse_error(m, &err, nullptr);
+  fail_unless(err->domain == GST_RESOURCE_ERROR && err->code == GST_RESOURCE_ERROR_OPEN_WRITE,
+              "%s", err->message);
+  fail_unless(strstr(err->message, path) != nullptr, "%s", err->message);
+  g_error_free(err);
+  gst_message_unref(m);
+  harness_free(r);
+}
+GST_END_TEST;
+
+/* ---- the orchard through the chain ---- */
+
+namespace {
+
+const double kSpeed = 1.0; // m/s, at 7 frames/s: 142.9 mm a frame
+const int kSeed = 3;
+
+std::string tmp_dir()
+{
+  static std::string dir;
+  if (dir.empty()) {
+    gchar *d = g_dir_make_tmp("treemetrics-row-XXXXXX", nullptr);
+    fail_unless(d != nullptr);
+    dir = d;
+    g_free(d);
+  }
+  return dir;
+}
+
+std::string caps_of(int w, int h)
+{
+  return "video/x-raw,format=RGB,width=" + std::to_string(w) + ",height=" + std::to_string(h) +
+         ",framerate=7/1";
+}
+
+/* The rig's calibration at this size, written by treetestsrc. */
+std::string calibration(int w, int h)
+{
+  const std::string path = tmp_dir() + "/rig-" + std::to_string(w) + ".yml";
+  if (g_file_test(path.c_str(), G_FILE_TEST_EXISTS))
+    return path;
+  const std::string desc = "treetestsrc view=left scene=orchard seed=" + std::to_string(kSeed) +
+                           " num-buffers=1 calibration-out=" + path + " ! " + caps_of(w, h) +
+                           " ! fakesink";
+  GError *err = nullptr;
+  GstElement *p = gst_parse_launch(desc.c_str(), &err);
+  fail_unless(p != nullptr && err == nullptr);
+  gst_element_set_state(p, GST_STATE_PLAYING);
+  GstBus *bus = gst_element_get_bus(p);
+  GstMessage *m = gst_bus_timed_pop_filtered(bus, 60 * GST_SECOND,
+                                             GstMessageType(GST_MESSAGE_EOS | GST_MESSAGE_ERROR));
+  fail_unless(m != nullptr && GST_MESSAGE_TYPE(m) == GST_MESSAGE_EOS);
+  gst_message_unref(m);
+  gst_object_unref(bus);
+  gst_element_set_state(p, GST_STATE_NULL);
+  gst_object_unref(p);
+  return path;
+}
+
+struct FrameOut {
+  guint64 frame = 0; // the renderer's frame number (truth meta)
+  double travel_m = 0, position_m = 0;
+  guint source = 0;
+};
+
+struct OrchardRun {
+  std::vector<FrameOut> frames;
+  std::vector<GstTreeStereoTreeRecord> records; // owned: cleared in free_run
+  bool records_before_eos = true;
+  guint metrics_messages = 0;
+  GstMessage *error = nullptr;
+};
+
+void free_run(OrchardRun &r)
+{
+  for (auto &rec : r.records)
+    gst_tree_stereo_tree_record_clear(&rec);
+  if (r.error)
+    gst_message_unref(r.error);
+}
+
+void handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
+{
+  OrchardRun &r = *static_cast<OrchardRun *>(data);
+  const GstTreeStereoTruthMeta *tm = gst_buffer_get_tree_stereo_truth_meta(buf);
+  const GstTreeStereoMetricsMeta *mm = gst_buffer_get_tree_stereo_metrics_meta(buf);
+  fail_unless(tm != nullptr && mm != nullptr);
+  r.frames.push_back({tm->truth.frame, mm->metrics.travel_m, mm->metrics.position_m,
+                      mm->metrics.travel_source});
+}
+
+OrchardRun run_orchard(int w, int h, int frames, const std::string &treemetrics_props)
+{
+  const std::string calib = calibration(w, h);
+  const std::string src = "treetestsrc scene=orchard seed=" + std::to_string(kSeed) +
+                          " num-buffers=" + std::to_string(frames) + " speed=" +
+                          std::to_string(kSpeed) + " ";
+  const std::string desc = "stereorectify name=r calibration=" + calib +
+                           " ! exgsegment ! siftmatch ! stereodepth ! treemetrics " +
+                           treemetrics_props + " ! fakesink name=out signal-handoffs=true " + src +
+                           "view=left ! " + caps_of(w, h) + " ! r.left " + src + "view=right ! " +
+                           caps_of(w, h) + " ! r.right";
+  GError *err = nullptr;
+  GstElement *p = gst_parse_launch(desc.c_str(), &err);
+  fail_unless(p != nullptr && err == nullptr, "%s", err ? err->message : desc.c_str());
+  OrchardRun r;
+  GstElement *sink = gst_bin_get_by_name(GST_BIN(p), "out");
+  g_signal_connect(sink, "handoff", G_CALLBACK(handoff), &r);
+  gst_object_unref(sink);
+  GstBus *bus = gst_element_get_bus(p);
+  gst_element_set_state(p, GST_STATE_PLAYING);
+  bool eos = false;
+  for (;;) {
+    GstMessage *m = gst_bus_timed_pop(bus, 300 * GST_SECOND);
+    fail_unless(m != nullptr, "the pipeline did not finish");
+    const GstMessageType t = GST_MESSAGE_TYPE(m);
+    if (t == GST_MESSAGE_ELEMENT && gst_message_has_name(m, GST_TREE_STEREO_MESSAGE_TREE)) {
+      GstTreeStereoTreeRecord rec{};
+      fail_unless(gst_tree_stereo_tree_message_parse(gst_message_get_structure(m), &rec, nullptr));
+      r.records.push_back(rec);
+      if (eos)
+        r.records_before_eos = false;
+    } else if (t == GST_MESSAGE_ELEMENT && gst_message_has_name(m, "treemetrics")) {
+      r.metrics_messages++;
+    } else if (t == GST_MESSAGE_ERROR) {
+      r.error = m;
+      break;
+    } else if (t == GST_MESSAGE_EOS) {
+      eos = true;
+      gst_message_unref(m);
+      // messages posted before EOS left the element are already queued ahead of it
+      while ((m = gst_bus_pop(bus))) {
+        if (GST_MESSAGE_TYPE(m) == GST_MESSAGE_ELEMENT &&
+            gst_message_has_name(m, GST_TREE_STEREO_MESSAGE_TREE))
+          r.records_before_eos = false;
+        gst_message_unref(m);
+      }
+      break;
+    }
+    gst_message_unref(m);
+  }
+  gst_object_unref(bus);
+  gst_element_set_state(p, GST_STATE_NULL);
+  gst_object_unref(p);
+  return r;
+}
+
+/* The renderer as treetestsrc builds it for these properties. */
+SceneParams orchard_params(int w, int h)
+{
+  SceneParams p;
+  p.kind = SceneKind::Orchard;
+  p.seed = kSeed;
+  p.image_size = cv::Size(w, h);
+  p.speed_m_s = kSpeed;
+  p.framerate = 7.0;
+  return p;
+}
+
+/* Each frame's stereo travel within `per_frame` of the renderer's, the position at the end
+ * within 3 %. */
+void check_travel(const OrchardRun &r, int w, int h, int frames, double per_frame,
+                  const char *what)
+{
+  const SceneRenderer renderer(orchard_params(w, h));
+  auto travel_m = [&](guint64 k) { return renderer.travel_mm(k) / 1000.0; };
+  fail_unless(r.error == nullptr);
+  fail_unless_equals_int(int(r.frames.size()), frames);
+  fail_unless_equals_int(r.frames[0].source, GST_TREE_STEREO_TRAVEL_NONE);
+  fail_unless_equals_float(r.frames[0].position_m, 0.0);
+  double worst = 0;
+  for (std::size_t k = 1; k < r.frames.size(); k++) {
+    const FrameOut &f = r.frames[k];
+    const double truth = travel_m(f.frame) - travel_m(r.frames[k - 1].frame);
+    fail_unless(truth > 0.1, "the renderer did not move: %.4f m", truth);
+    fail_unless_equals_int(f.source, GST_TREE_STEREO_TRAVEL_STEREO);
+    const double err = (f.travel_m - truth) / truth;
+    std::printf("%s frame %zu: travel %.4f m, truth %.4f m (%+.2f %%)\n", what, k, f.travel_m,
+                truth, 100 * err);
+    worst = std::max(worst, std::fabs(err));
+    fail_unless(std::fabs(err) < per_frame, "%s frame %zu: travel %.4f m, truth %.4f m", what, k,
+                f.travel_m, truth);
+  }
+  const double truth_pos = travel_m(r.frames.back().frame) - travel_m(r.frames.front().frame);
+  const double pos = r.frames.back().position_m;
+  std::printf("%s: position %.4f m, truth %.4f m (%+.2f %%), worst frame %.2f %%\n", what, pos,
+              truth_pos, 100 * (pos - truth_pos) / truth_pos, 100 * worst);
+  fail_unless(std::fabs(pos - truth_pos) < 0.03 * truth_pos, "%s: position %.4f m, truth %.4f m",
+              what, pos, truth_pos);
+}
+
+} // namespace
+
+/* 1296x972, the cameras' size: every frame's travel within 3 % of the renderer's. */
+GST_START_TEST(test_travel_from_stereo_full_size)
+{
+  const int n = 5;
+  OrchardRun r = run_orchard(1296, 972, n, "trees=false");
+  check_travel(r, 1296, 972, n, 0.03, "1296x972");
+  fail_unless(r.records.empty(), "trees=false posted records");
+  free_run(r);
+}
+GST_END_TEST;
+
+/* 640x480 over two trees: the travel, the tree records at EOS against row_trees(), and the row
+ * map files. */
+GST_START_TEST(test_trees_and_row_map_on_the_orchard)
+{
+  const int n = 14, w = 640, h = 480;
+  const std::string csv = tmp_dir() + "/row.csv", png = tmp_dir() + "/row.png";
+  OrchardRun r = run_orchard(w, h, n, "row-map-location=" + csv + " row-map-bin=0.1");
+  check_travel(r, w, h, n, 0.07, "640x480");
+  fail_unless_equals_int(int(r.metrics_messages), n);
+
+  // The records: ids counting from 1, the last ones (still in view) posted at EOS, before EOS
+  // went on.
+  fail_unless(r.records.size() >= 2, "%zu records", r.records.size());
+  fail_unless(r.records_before_eos, "a tree record came after EOS");
+  const SceneRenderer renderer(orchard_params(w, h));
+  const double origin_m = renderer.travel_mm(0) / 1000.0; // the tracker's world starts at 0
+  int complete = 0;
+  for (std::size_t i = 0; i < r.records.size(); i++) {
+    const GstTreeStereoTreeRecord &rec = r.records[i];
+    fail_unless_equals_int(rec.id, int(i) + 1);
+    fail_unless_equals_int(rec.mode, GST_TREE_STEREO_CANOPY_TREE);
+    fail_unless(rec.start_m < rec.end_m);
+    fail_unless(std::fabs(rec.position_m - 0.5 * (rec.start_m + rec.end_m)) < 1e-9);
+    fail_unless(rec.frames_seen > 0);
+    fail_unless_equals_int(rec.has_spacing, i > 0);
+    // The renderer's tree it is: the one overlapping it most.
+    const double lo = rec.start_m + origin_m, hi = rec.end_m + origin_m;
+    const std::vector<RowTree> truth = renderer.row_trees(lo * 1000, hi * 1000);
+    fail_unless(!truth.empty(), "record %u at %.2f..%.2f m matches no tree", rec.id, lo, hi);
+    const RowTree *best = &truth[0];
+    for (const RowTree &t : truth)
+      if (std::min(hi, t.end_m) - std::max(lo, t.start_m) >
+          std::min(hi, best->end_m) - std::max(lo, best->start_m))
+        best = &t;
+    std::printf("tree %u%s: %.3f..%.3f m (truth %.3f..%.3f), height %s%.3f (truth %.3f), width "
+                "%s%.3f (truth %.3f), distance %.3f (trunk %.3f), %u frames, %u seen\n",
+                rec.id, rec.complete ? "" : " (incomplete)", lo, hi, best->start_m, best->end_m,
+                rec.has_height ? "" : "none ", rec.height_m, best->height_m,
+                rec.has_width ? "" : "none ", rec.width_m, best->width_m, rec.distance_m,
+                best->distance_m, rec.frames, rec.frames_seen);
+    if (rec.start_seen)
+      fail_unless(std::fabs(lo - best->start_m) < 0.12, "tree %u start %.3f, truth %.3f", rec.id,
+                  lo, best->start_m);
+    if (rec.end_seen)
+      fail_unless(std::fabs(hi - best->end_m) < 0.12, "tree %u end %.3f, truth %.3f", rec.id, hi,
+                  best->end_m);
+    if (rec.has_height)
+      fail_unless(std::fabs(rec.height_m - best->height_m) < 0.15 * best->height_m,
+                  "tree %u height %.3f, truth %.3f", rec.id, rec.height_m, best->height_m);
+    if (rec.has_width)
+      fail_unless(std::fabs(rec.width_m - best->width_m) < 0.15 * best->width_m,
+                  "tree %u width %.3f, truth %.3f", rec.id, rec.width_m, best->width_m);
+    if (rec.has_depth) {
+      // the canopy's visible surface lies in front of the trunk, within its depth
+      fail_unless(rec.distance_m < best->distance_m + 0.05 &&
+                      rec.distance_m > best->distance_m - best->depth_m / 2 - 0.1,
+                  "tree %u distance %.3f, trunk %.3f", rec.id, rec.distance_m, best->distance_m);
+      fail_unless(rec.confidence > 0.5 && rec.confidence <= 1.0);
+      fail_unless(rec.n_bands > 0);
+    }
+    if (rec.complete) {
+      complete++;
+      fail_unless(rec.has_height && rec.has_width && rec.has_depth && rec.frames > 0);
+    }
+  }
+  fail_unless(complete >= 1, "no complete tree record");
+
+  // The row map: CSV with DESIGN's columns over the travel, the picture beside it.
+  std::ifstream f(csv);
+  fail_unless(f.good(), "no row map at %s", csv.c_str());
+  std::string line;
+  std::getline(f, line);
+  fail_unless_equals_string(line.c_str(), "position_m,band,present,distance_m,fill");
+  int rows = 0, present = 0;
+  double first = 1e9, last = -1e9;
+  while (std::getline(f, line)) {
+    double pos = 0, dist = 0, fill = 0;
+    int band = 0, pres = 0;
+    const int got = std::sscanf(line.c_str(), "%lf,%d,%d,%lf,%lf", &pos, &band, &pres, &dist,
+                                &fill);
+    fail_unless(got == 5 || (got == 3 && pres == 0), "%s", line.c_str());
+    rows++;
+    present += pres;
+    first = std::min(first, pos);
+    last = std::max(last, pos);
+    if (pres)
+      fail_unless(dist > 1.0 && dist < 3.0 && fill > 0 && fill <= 1, "%s", line.c_str());
+  }
+  std::printf("row map: %d rows, %d present, %.2f..%.2f m\n", rows, present, first, last);
+  fail_unless(rows > 40 && present > 10, "%d rows, %d present", rows, present);
+  // it spans at least the travel (the view is wider than the travel between its ends)
+  fail_unless(last - first > 0.9 * r.frames.back().position_m);
+  fail_unless(g_file_test(png.c_str(), G_FILE_TEST_EXISTS), "no picture at %s", png.c_str());
+  free_run(r);
+}
+GST_END_TEST;
+
+static Suite *treemetrics_row_suite(void)
+{
+  Suite *s = suite_create("treemetrics_row");
+  TCase *tc = tcase_create("general");
+  tcase_set_timeout(tc, 600);
+  suite_add_tcase(s, tc);
+  tcase_add_test(tc, test_travel_from_speed);
+  tcase_add_test(tc, test_row_properties);
+  tcase_add_test(tc, test_row_map_bad_path_is_a_named_error);
+  tcase_add_test(tc, test_travel_from_stereo_full_size);
+  tcase_add_test(tc, test_trees_and_row_map_on_the_orchard);
+  return s;
+}
+
+GST_CHECK_MAIN(treemetrics_row)
