@@ -354,8 +354,19 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
     return GST_TREE_STEREO_TRAVEL_NONE;
   }
   treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
-  if (!frame.ok())
-    throw std::runtime_error("treemetrics: could not map the frame for the travel estimate");
+  if (!frame.ok()) {
+    // A buffer without the pixels its caps promise (metas alone, as a test or a replay of the
+    // metas hands on): nothing to track. The measurements need no pixels, so this stops
+    // nothing; travel-source "none" says it in every message.
+    a.prev_left.release();
+    a.prev_right.release();
+    if (!st->warned_travel) {
+      st->warned_travel = true;
+      GST_INFO_OBJECT(self, "no travel: buffer %" GST_PTR_FORMAT " is not a whole video frame",
+                      buf);
+    }
+    return GST_TREE_STEREO_TRAVEL_NONE;
+  }
   const cv::Mat mat = frame.mat();
   const treestereo::gst::PixelLayout layout =
       treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info));
