@@ -7,7 +7,23 @@
  * #GstTreeStereoPointsMeta), with stereorectify's #GstTreeStereoGeometryMeta, it computes every
  * figure of DESIGN.md's treemetrics table and attaches them as a #GstTreeStereoMetricsMeta.
  * All values are in the rectified-left camera frame (x right, y down, z forward), SI units.
- * The pixels are neither touched nor mapped.
+ * The pixels are never written; they are read only for the stereo travel estimate.
+ *
+ * Along the row (DESIGN.md "In an orchard"; docs/elements/treemetrics.md "Along the row"):
+ * - the rig's travel since the previous frame and its position since the stream's start
+ *   (`travel-m`, `position-m`, `travel-source` in the message and the meta): #treemetrics:speed
+ *   > 0 (wheel odometry, GNSS) gives speed x the PTS difference; otherwise, with
+ *   #treemetrics:travel, lib's estimate_motion() between the previous frame's views (grey
+ *   copies) and this one's. A frame without a travel (the first, a failed estimate) says
+ *   `travel-source=none` with travel 0 and keeps the position.
+ * - with stereodepth's #GstTreeStereoCanopyMeta and #treemetrics:trees, lib's TreeTracker follows
+ *   the trees along the row with the meta's segments; each tree leaving the view (and, at EOS,
+ *   each one still in view, before EOS goes on) is posted as a `treestereo-tree` element message
+ *   (gst_tree_stereo_tree_message_structure()).
+ * - with #treemetrics:row-map-location, lib's RowMap is fed per frame and written at EOS: the
+ *   CSV at the location, the picture beside it (.png); a write failure is a RESOURCE/OPEN_WRITE
+ *   error naming the file.
+ * A stream-start starts them over (position 0, tree 1, an empty map).
  *
  * Height and width convert the silhouette's angular extent into metres by
  * #treemetrics:extent-method (default `tangent-points`: each silhouette edge at the depth of
@@ -42,6 +58,8 @@
  * With #treemetrics:post-messages, an element message named `treemetrics` per buffer:
  *
  * - `timestamp`, `stream-time`, `running-time`: #guint64, ns, of the buffer
+ * - `travel-m`, `position-m`: #gdouble, m, the rig's travel since the previous frame and its
+ *   position since the start; `travel-source`: string, `stereo`, `speed` or `none`
  * - `tree-present`: #gboolean; when FALSE none of the fields below but `canopy-mode` is present
  * - `canopy-mode`: string, what was measured: `colour` (the colour silhouette, no canopy meta
  *   upstream), `tree` or `row` (the canopy meta's 3D canopy)
