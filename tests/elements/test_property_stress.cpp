@@ -209,6 +209,9 @@ static std::vector<Knob> knobs(Rig &rig)
       {metrics, "bands", {"2", "4", "8"}},
       {metrics, "smoothing", {"0", "0.5", "0.9"}},
       {metrics, "extent-method", {"round-canopy", "edge-points"}},
+      {metrics, "speed", {"0", "0.5"}},
+      {metrics, "travel", {"true", "false"}},
+      {metrics, "trees", {"true", "false"}},
   };
 }
 
