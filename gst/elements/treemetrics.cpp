@@ -204,6 +204,9 @@ struct Along {
   bool has_prev_pts = false;
   GstClockTime prev_pts = GST_CLOCK_TIME_NONE;
   double position_mm = 0;
+  // The last ground plane stereodepth found: the rig is rigid, so a frame whose grass gave no
+  // plane (a hedgerow's base hidden, a sparse frame) takes the last one.
+  GroundPlane ground;
   std::unique_ptr<TreeTracker> tracker;
   std::vector<TreeRecord> records; // every record posted, drawn on the row map's picture
   std::unique_ptr<RowMap> row_map;
@@ -339,6 +342,8 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
   State *st = self->state;
   Along &a = st->along;
   travel_mm = 0;
+  if (canopy && canopy->ground_found)
+    a.ground = treestereo::gst::ground_from_meta(canopy);
   const GstClockTime pts = GST_BUFFER_PTS(buf);
   const bool had_pts = a.has_prev_pts && GST_CLOCK_TIME_IS_VALID(pts);
   const GstClockTime prev_pts = a.prev_pts;
@@ -408,7 +413,7 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
     if (left.cols <= 800)
       tp.scale = 1.0;
     const Motion m = estimate_motion(a.prev_left, a.prev_right, left, right, points, geometry, tp,
-                                     treestereo::gst::ground_from_meta(canopy));
+                                     a.ground);
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     GST_DEBUG_OBJECT(self,
@@ -469,7 +474,7 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
     std::vector<TreeRecord> r = a.tracker->update(f);
     out.insert(out.end(), r.begin(), r.end());
   }
-  if (!s.row_map_location.empty() && canopy->ground_found) {
+  if (!s.row_map_location.empty() && a.ground.found) {
     if (!a.row_map) {
       RowMapParams rp;
       rp.bin_mm = s.row_map_bin * 1000.0;
@@ -482,7 +487,7 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
     const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
     a.row_map->add_frame(mask,
                          treestereo::gst::pixel_points_of(pm, mm, guint(geometry.view_size.width)),
-                         geometry, treestereo::gst::ground_from_meta(canopy), a.position_mm);
+                         geometry, a.ground, a.position_mm);
   }
   return out;
 }
@@ -512,7 +517,8 @@ static bool write_row_map(GstTreeMetrics *self, const std::string &location)
       if (!f)
         throw std::runtime_error("cannot write " + location + ": " + g_strerror(errno));
       GST_ELEMENT_WARNING(self, STREAM, FAILED,
-                          ("The row map is empty (no frame had a 3D canopy with a ground plane): "
+                          ("The row map is empty (no 3D canopy, or no ground plane: see "
+                           "stereodepth's ground=rig): "
                            "\"%s\" holds the header alone, no picture written.",
                            location.c_str()),
                           (nullptr));

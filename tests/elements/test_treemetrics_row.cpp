@@ -283,14 +283,17 @@ void handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
                       mm->metrics.travel_source});
 }
 
-OrchardRun run_orchard(int w, int h, int frames, const std::string &treemetrics_props)
+OrchardRun run_orchard(int w, int h, int frames, const std::string &treemetrics_props,
+                       const std::string &scene = "orchard",
+                       const std::string &stereodepth_props = "")
 {
   const std::string calib = calibration(w, h);
-  const std::string src = "treetestsrc scene=orchard seed=" + std::to_string(kSeed) +
+  const std::string src = "treetestsrc scene=" + scene + " seed=" + std::to_string(kSeed) +
                           " num-buffers=" + std::to_string(frames) + " speed=" +
                           std::to_string(kSpeed) + " ";
   const std::string desc = "stereorectify name=r calibration=" + calib +
-                           " ! exgsegment ! siftmatch ! stereodepth ! treemetrics " +
+                           " ! exgsegment ! siftmatch ! stereodepth " + stereodepth_props +
+                           " ! treemetrics " +
                            treemetrics_props + " ! fakesink name=out signal-handoffs=true " + src +
                            "view=left ! " + caps_of(w, h) + " ! r.left " + src + "view=right ! " +
                            caps_of(w, h) + " ! r.right";
@@ -493,6 +496,38 @@ GST_START_TEST(test_trees_and_row_map_on_the_orchard)
 }
 GST_END_TEST;
 
+/* A hedgerow with stereodepth canopy=row: the records are canopy segments (segment=TRUE), the
+ * row map is filled with the rig's ground plane. */
+GST_START_TEST(test_hedgerow_records_are_segments)
+{
+  const int n = 8, w = 640, h = 480;
+  const std::string csv = tmp_dir() + "/hedge.csv";
+  OrchardRun r = run_orchard(w, h, n, "row-map-location=" + csv, "hedgerow",
+                             "canopy=row ground=rig camera-height=950");
+  fail_unless(r.error == nullptr);
+  fail_unless_equals_int(int(r.frames.size()), n);
+  fail_unless(!r.records.empty());
+  fail_unless(r.records_before_eos);
+  for (const GstTreeStereoTreeRecord &rec : r.records) {
+    fail_unless_equals_int(rec.mode, GST_TREE_STEREO_CANOPY_ROW);
+    fail_unless(rec.start_m < rec.end_m);
+    // mode row: the width is the segment's extent along the row, when it has one
+    if (rec.has_width)
+      fail_unless(std::fabs(rec.width_m - (rec.end_m - rec.start_m)) < 1e-9);
+  }
+  // a hedgerow runs on past the view: the one segment reaches beyond the travel
+  fail_unless(r.records[0].end_m - r.records[0].start_m > r.frames.back().position_m);
+  std::ifstream f(csv);
+  std::string line;
+  int rows = 0;
+  while (std::getline(f, line))
+    rows++;
+  fail_unless(rows > 40, "%d rows in the hedgerow's row map", rows);
+  fail_unless(g_file_test((tmp_dir() + "/hedge.png").c_str(), G_FILE_TEST_EXISTS));
+  free_run(r);
+}
+GST_END_TEST;
+
 static Suite *treemetrics_row_suite(void)
 {
   Suite *s = suite_create("treemetrics_row");
@@ -504,6 +539,7 @@ static Suite *treemetrics_row_suite(void)
   tcase_add_test(tc, test_row_map_bad_path_is_a_named_error);
   tcase_add_test(tc, test_travel_from_stereo_full_size);
   tcase_add_test(tc, test_trees_and_row_map_on_the_orchard);
+  tcase_add_test(tc, test_hedgerow_records_are_segments);
   return s;
 }
 
