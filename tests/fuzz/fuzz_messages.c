@@ -108,6 +108,28 @@ check_metrics (const GstStructure * s)
   gst_tree_stereo_metrics_clear (&smooth2);
 }
 
+static void
+check_tree (const GstStructure * s)
+{
+  GstTreeStereoTreeRecord r, r2;
+  GstTreeStereoTimes t;
+  GstStructure *again;
+
+  memset (&r, 0, sizeof r);
+  memset (&r2, 0, sizeof r2);
+  if (gst_tree_stereo_tree_message_parse (s, &r, &t)) {
+    again = gst_tree_stereo_tree_message_structure (&r, &t);
+    if (!gst_tree_stereo_tree_message_parse (again, &r2, NULL))
+      fail ("treestereo-tree");
+    if (r2.id != r.id || r2.n_bands != r.n_bands || r2.has_depth != r.has_depth ||
+        r2.has_spacing != r.has_spacing)
+      fail ("treestereo-tree figures");
+    gst_structure_free (again);
+  }
+  gst_tree_stereo_tree_record_clear (&r);
+  gst_tree_stereo_tree_record_clear (&r2);
+}
+
 /* Real messages nest values two deep (an array of structures); GStreamer's own deserializer
  * recurses and leaks on malformed deeply nested values, which is not what this target tests. */
 static gboolean
@@ -145,6 +167,7 @@ LLVMFuzzerTestOneInput (const uint8_t * data, size_t size)
   check_match (s);
   check_depth (s);
   check_metrics (s);
+  check_tree (s);
   gst_structure_free (s);
   return 0;
 }
