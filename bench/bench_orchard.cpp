@@ -2,11 +2,12 @@
 // the synthetic orchard's exact truth, on tree seeds split into tuning and held-out sets.
 // Prints markdown tables.
 //
-//   bench-orchard [--only orchard|hedgerow] [--size 1296x972]
+//   bench-orchard [--only orchard|hedgerow|driveby] [--size 1296x972]
 //                 [--tuning-seeds 1,3,5,7] [--held-out-seeds 2,4,6,8]
 //                 [--distances 1.6:2.4:0.2] [--lights 0.7,1.0,1.3]      (orchard sweep)
 //                 [--layouts 0,1,2,3] (of the row layouts below)
 //                 [--hedgerow-distances 1.6:2.4:0.4] [--hedgerow-lights 1.0]
+//                 [--speeds 0.5,1.0,2.0] [--driveby-distance 2.0]          (drive-by sweep)
 //                 [--exgsegment "keep=all"] [--siftmatch ...] [--stereodepth ...]
 //                 [--treemetrics ...] [--masks DIR] (overlays of the frames that fail badly)
 //
@@ -38,6 +39,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <cstdio>
 #include <iterator>
@@ -311,6 +313,8 @@ struct Options {
   std::string hedge_distances = "1.6:2.4:0.4", hedge_lights = "1.0";
   std::string only, masks;
   std::vector<double> layouts{0, 1, 2, 3}; // indices into kLayouts
+  std::string speeds = "0.5,1.0,2.0";       // drive-by sweep (m/s)
+  double driveby_distance = 2.0;
   ElementProps props;
 };
 
@@ -578,6 +582,236 @@ void hedgerow_sweep(const Options &o)
 
 } // namespace
 
+// ---- Drive-by sweep (travel, tree records, row map) ----
+
+// A tree record as the chain posted it (the treestereo-tree message).
+struct ChainTree {
+  double position = 0, start = 0, end = 0, height = 0, width = 0;
+  bool complete = false;
+};
+
+struct DrivebyRun {
+  SceneConfig c;
+  bool held_out = false;
+  int frames = 0;
+  double true_position = 0, position = 0;   // since the start, at the last frame (m)
+  int true_trees = 0, chain_trees = 0;      // trees fully in view at some frame; complete records
+  std::vector<double> pos_err_cm, height_err, width_err; // matched trees
+  int gaps = 0, gaps_seen = 0;              // true gaps of 10 cm and more; of them, in the map
+};
+
+void driveby_sweep(const Options &o)
+{
+  const RigFile rig(o.size);
+  const double fx = rig.calibration().M1.at<double>(0, 0);
+  const double cx = rig.calibration().M1.at<double>(0, 2);
+  const ElementProps &p = o.props;
+  std::vector<DrivebyRun> runs;
+  gchar *dir = g_dir_make_tmp("bench-orchard-map-XXXXXX", nullptr);
+  const std::string map_csv = std::string(dir) + "/map.csv";
+  for (double speed : parse_list(o.speeds))
+    for (const auto &[seed, held] : all_seeds(o)) {
+      DrivebyRun run;
+      run.c = SceneConfig(o.size, o.driveby_distance, std::uint64_t(seed), 1.0,
+                          SceneKind::Orchard);
+      run.c.row_gap_min_m = 0.15;
+      run.c.row_gap_max_m = 0.8;
+      run.c.speed_m_s = speed;
+      run.c.touching_pair = 2;
+      run.held_out = held;
+      const SceneRenderer renderer(run.c.params());
+      // Enough frames for trees 0..5 to pass through the view.
+      const auto ahead = renderer.row_trees(-1000, 12000);
+      double end6 = 0;
+      for (const RowTree &t : ahead)
+        if (t.index == 5)
+          end6 = t.end_m;
+      const double half_view = 0.5 * o.size.width / fx * o.driveby_distance;
+      const double step = renderer.travel_mm(1) / 1000.0;
+      run.frames = int(std::ceil((end6 + half_view + 0.1) / step)) + 1;
+      // Trees fully in view at some frame (view edges at each tree's own near-face distance).
+      const double last = renderer.travel_mm(std::uint64_t(run.frames - 1)) / 1000.0;
+      std::vector<RowTree> truth;
+      for (const RowTree &t : renderer.row_trees(-3000, 1000 * (last + 3))) {
+        const double l = (0 - cx) / fx * t.distance_m, r = (o.size.width - cx) / fx * t.distance_m;
+        // visible in full at frame k when start >= travel_k + l and end <= travel_k + r
+        const double k_lo = (t.end_m - r) / step, k_hi = (t.start_m - l) / step;
+        if (std::ceil(std::max(0.0, k_lo)) <= std::floor(std::min(double(run.frames - 1), k_hi)))
+          truth.push_back(t);
+      }
+      run.true_trees = int(truth.size());
+      run.true_position = last;
+      std::vector<ChainTree> chain;
+      const std::string tail = "stereodepth canopy=tree " + p.stereodepth +
+                               " ! treemetrics row-map-location=" + map_csv + " " +
+                               p.treemetrics + " ! appsink sync=false name=out";
+      const auto on_frame = [&](int frame, const std::vector<GstBuffer *> &buf) {
+        if (const auto *m = gst_buffer_get_tree_stereo_metrics_meta(buf[0])) {
+          run.position = m->metrics.position_m;
+          std::fprintf(stderr, "driveby seed=%llu speed=%.1f frame %d: travel %.4f m (%s, truth "
+                       "%.4f), position %.3f m (truth %.3f)\n",
+                       (unsigned long long)run.c.seed, speed, frame, m->metrics.travel_m,
+                       gst_tree_stereo_travel_source_to_string(
+                           GstTreeStereoTravelSource(m->metrics.travel_source)),
+                       frame > 0 ? step : 0.0, m->metrics.position_m,
+                       renderer.travel_mm(std::uint64_t(frame)) / 1000.0);
+        }
+      };
+      const auto on_element = [&](GstMessage *msg) {
+        const GstStructure *st = gst_message_get_structure(msg);
+        GstTreeStereoTreeRecord rec = {};
+        if (!st || !gst_structure_has_name(st, GST_TREE_STEREO_MESSAGE_TREE) ||
+            !gst_tree_stereo_tree_message_parse(st, &rec, nullptr))
+          return;
+        ChainTree t;
+        t.position = rec.position_m;
+        t.start = rec.start_m;
+        t.end = rec.end_m;
+        t.height = rec.has_height ? rec.height_m : 0;
+        t.width = rec.has_width ? rec.width_m : 0;
+        t.complete = rec.complete && rec.has_height && rec.has_width;
+        chain.push_back(t);
+        std::fprintf(stderr,
+                     "driveby seed=%llu speed=%.1f: record %u at %.3f m (%.3f..%.3f) complete %d "
+                     "height %s width %s frames %u of %u%s\n",
+                     (unsigned long long)run.c.seed, speed, rec.id, rec.position_m, rec.start_m,
+                     rec.end_m, rec.complete, rec.has_height ? "yes" : "no",
+                     rec.has_width ? "yes" : "no", rec.frames, rec.frames_seen,
+                     rec.lost ? " lost" : "");
+        gst_tree_stereo_tree_record_clear(&rec);
+      };
+      bench::run_chain(bench::chain_description(run.c, run.frames, rig.path(), p, tail),
+                       {"out"}, on_frame, "bench-orchard", on_element);
+      for (const ChainTree &t : chain)
+        run.chain_trees += t.complete;
+      for (const RowTree &t : truth) {
+        const ChainTree *best = nullptr;
+        for (const ChainTree &c : chain)
+          if (c.complete && (!best || std::abs(c.position - 0.5 * (t.start_m + t.end_m)) <
+                                          std::abs(best->position - 0.5 * (t.start_m + t.end_m))))
+            best = &c;
+        if (!best)
+          continue;
+        run.pos_err_cm.push_back(100 * (best->position - 0.5 * (t.start_m + t.end_m)));
+        run.height_err.push_back(100 * (best->height - t.height_m) / t.height_m);
+        run.width_err.push_back(100 * (best->width - t.width_m) / t.width_m);
+        std::fprintf(stderr,
+                     "driveby seed=%llu%s speed=%.1f: tree %d at %.3f m (chain %.3f) height "
+                     "%.3f (%.3f) width %.3f (%.3f)\n",
+                     (unsigned long long)run.c.seed, held ? "h" : "", speed, t.index,
+                     0.5 * (t.start_m + t.end_m), best->position, best->height, t.height_m,
+                     best->width, t.width_m);
+      }
+      // Gaps of 10 cm and more between consecutive true trees: a 5 cm bin wholly inside the
+      // gap is empty in every band of the map.
+      std::map<long, bool> bin_present; // bin start (mm) -> any band present
+      if (FILE *f = std::fopen(map_csv.c_str(), "r")) {
+        char line[256];
+        double bin_m = 0.05;
+        std::vector<double> starts;
+        while (std::fgets(line, sizeof line, f)) {
+          double pos = 0, dist = 0, fill = 0;
+          int band = 0, present = 0;
+          if (std::sscanf(line, "%lf,%d,%d,%lf,%lf", &pos, &band, &present, &dist, &fill) >= 3) {
+            auto &v = bin_present[std::lround(pos * 1000)];
+            v = v || present;
+          }
+        }
+        std::fclose(f);
+        for (std::size_t i = 0; i + 1 < truth.size(); ++i) {
+          const double g0 = truth[i].end_m, g1 = truth[i + 1].start_m;
+          if (g1 - g0 < 0.10)
+            continue;
+          ++run.gaps;
+          bool seen = false;
+          for (const auto &[mm, present] : bin_present) {
+            // bin_present's key: the bin's position_m (its centre) in mm
+            const double lo = mm / 1000.0 - 0.5 * bin_m, hi = mm / 1000.0 + 0.5 * bin_m;
+            if (lo >= g0 && hi <= g1 && !present)
+              seen = true;
+          }
+          run.gaps_seen += seen;
+        }
+      }
+      std::fprintf(stderr,
+                   "driveby seed=%llu%s speed=%.1f: %d frames, position %.3f m (truth %.3f), "
+                   "trees %d (truth %d), gaps seen %d of %d\n",
+                   (unsigned long long)run.c.seed, held ? "h" : "", speed, run.frames,
+                   run.position, run.true_position, run.chain_trees, run.true_trees,
+                   run.gaps_seen, run.gaps);
+      runs.push_back(run);
+    }
+  g_unlink(map_csv.c_str());
+  g_unlink((std::string(dir) + "/map.png").c_str());
+  g_rmdir(dir);
+  g_free(dir);
+
+  std::printf("### Drive-by: travel, tree records and the row map (stereodepth canopy=tree)\n\n");
+  std::printf("scene orchard, %dx%d at 7 frames/s, trunks at %.1f m, gaps 0.15-0.8 m with trees 2 "
+              "and 3 touching, speeds %s m/s, tuning seeds %s, held-out seeds %s. Element "
+              "properties: %s. Truth: SceneRenderer::row_trees() (trees fully in view at some "
+              "frame), travel_mm(). Targets: count exact, positions within 5 cm, height and width "
+              "within 2 %%, position since the start within 2 %%, gaps of 10 cm and more in the "
+              "map.\n\n",
+              o.size.width, o.size.height, o.driveby_distance, o.speeds.c_str(),
+              seeds_text(o.tuning).c_str(), seeds_text(o.held_out).c_str(),
+              common_props(o).c_str());
+  std::printf("| seeds | speed (m/s) | runs | frames | trees chain / truth | position err %% (end) "
+              "mean / worst | tree position \\|err\\| cm mean / worst | height \\|err\\| %% "
+              "mean / worst | width \\|err\\| %% mean / worst | gaps >= 10 cm in the map |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+  auto row = [&](const char *set, int which, double speed) {
+    int n = 0, frames = 0, ct = 0, tt = 0, gaps = 0, seen = 0;
+    double pe_sum = 0, pe_max = 0;
+    std::vector<double> pos, h, w;
+    for (const DrivebyRun &r : runs) {
+      if ((which == 0 && r.held_out) || (which == 1 && !r.held_out) ||
+          (speed > 0 && std::abs(r.c.speed_m_s - speed) > 1e-9))
+        continue;
+      ++n;
+      frames += r.frames;
+      ct += r.chain_trees;
+      tt += r.true_trees;
+      gaps += r.gaps;
+      seen += r.gaps_seen;
+      const double pe = std::abs(r.position - r.true_position) / r.true_position * 100;
+      pe_sum += pe;
+      pe_max = std::max(pe_max, pe);
+      for (double x : r.pos_err_cm)
+        pos.push_back(std::abs(x));
+      for (double x : r.height_err)
+        h.push_back(std::abs(x));
+      for (double x : r.width_err)
+        w.push_back(std::abs(x));
+    }
+    if (!n)
+      return;
+    auto mw = [](const std::vector<double> &v) {
+      char b[64];
+      if (v.empty())
+        return std::string("-");
+      double sum = 0, mx = 0;
+      for (double x : v) {
+        sum += x;
+        mx = std::max(mx, x);
+      }
+      std::snprintf(b, sizeof b, "%.2f / %.2f", sum / double(v.size()), mx);
+      return std::string(b);
+    };
+    char sp[32];
+    std::snprintf(sp, sizeof sp, speed > 0 ? "%.1f" : "all", speed);
+    std::printf("| %s | %s | %d | %d | %d / %d | %.2f / %.2f | %s | %s | %s | %d / %d |\n", set, sp,
+                n, frames, ct, tt, pe_sum / n, pe_max, mw(pos).c_str(), mw(h).c_str(),
+                mw(w).c_str(), seen, gaps);
+  };
+  for (int which : {0, 1, 2})
+    for (double speed : parse_list(o.speeds)) {
+      row(which == 0 ? "tuning" : which == 1 ? "held-out" : "all", which, speed);
+    }
+  row("all", 2, 0);
+  std::printf("\n");
+}
+
 int main(int argc, char **argv)
 {
   bench::init_gstreamer(argc, argv);
@@ -606,6 +840,10 @@ int main(int argc, char **argv)
       o.layouts = parse_list(v);
     else if (a == "--masks")
       o.masks = v;
+    else if (a == "--speeds")
+      o.speeds = v;
+    else if (a == "--driveby-distance")
+      o.driveby_distance = std::atof(v.c_str());
     else if (!bench::element_option(a, v, o.props) || a == "--treetestsrc") {
       // (--treetestsrc: the scene is the sweep's; free properties would not reach the truth)
       std::fprintf(stderr, "bench-orchard: unknown option %s\n", a.c_str());
@@ -622,5 +860,7 @@ int main(int argc, char **argv)
     orchard_sweep(o);
   if (o.only.empty() || o.only == "hedgerow")
     hedgerow_sweep(o);
+  if (o.only.empty() || o.only == "driveby")
+    driveby_sweep(o);
   return 0;
 }

@@ -44,6 +44,8 @@ struct SceneConfig {
   SceneKind scene = SceneKind::Lab;
   // The rows (m); negative = the scene's default (treetestsrc's -1).
   double row_gap_min_m = -1, row_gap_max_m = -1, row_spacing_m = -1;
+  double speed_m_s = 0;   // the rig driving along the row (at 7 frames/s)
+  int touching_pair = -1; // treetestsrc's touching-pair: -1 none
 
   SceneConfig() = default;
   SceneConfig(cv::Size size_, double distance_m_, std::uint64_t seed_, double light_,
@@ -64,6 +66,9 @@ struct SceneConfig {
     p.row_gap_min_mm = mm(row_gap_min_m);
     p.row_gap_max_mm = mm(row_gap_max_m);
     p.row_spacing_mm = mm(row_spacing_m);
+    p.speed_m_s = speed_m_s;
+    if (touching_pair >= 0)
+      p.touching_pair = touching_pair;
     return p;
   }
 
@@ -73,11 +78,11 @@ struct SceneConfig {
     char b[512];
     std::snprintf(b, sizeof b,
                   "scene=%s seed=%llu distance=%g light=%g row-gap-min=%g row-gap-max=%g "
-                  "row-spacing=%g",
+                  "row-spacing=%g speed=%g touching-pair=%d",
                   scene_kind_name(scene), (unsigned long long)seed, distance_m, light,
                   row_gap_min_m < 0 ? -1.0 : row_gap_min_m,
                   row_gap_max_m < 0 ? -1.0 : row_gap_max_m,
-                  row_spacing_m < 0 ? -1.0 : row_spacing_m);
+                  row_spacing_m < 0 ? -1.0 : row_spacing_m, speed_m_s, touching_pair);
     return b;
   }
 };
@@ -145,11 +150,13 @@ inline std::string chain_description(const SceneConfig &c, int frames, const std
 }
 
 // Runs a pipeline to its end: for every frame, on_frame(frame, buffers) with one buffer per
-// appsink in `sinks` (in that order). Errors on the bus are printed with `who` in front.
+// appsink in `sinks` (in that order). Errors on the bus are printed with `who` in front; at the
+// end, every element message posted goes to on_element, in order.
 // Returns the wall time per frame (ms).
 inline double run_chain(const std::string &description, const std::vector<std::string> &sinks,
                         const std::function<void(int, const std::vector<GstBuffer *> &)> &on_frame,
-                        const char *who)
+                        const char *who,
+                        const std::function<void(GstMessage *)> &on_element = {})
 {
   GError *err = nullptr;
   GstElement *p = gst_parse_launch(description.c_str(), &err);
@@ -176,12 +183,19 @@ inline double run_chain(const std::string &description, const std::vector<std::s
     for (GstSample *s : samples)
       gst_sample_unref(s);
   }
+  // The bus in order: the first error is printed; element messages go to on_element.
   GstBus *bus = gst_element_get_bus(p);
-  if (GstMessage *msg = gst_bus_pop_filtered(bus, GST_MESSAGE_ERROR)) {
-    GError *e = nullptr;
-    gst_message_parse_error(msg, &e, nullptr);
-    std::fprintf(stderr, "%s: %s\n", who, e->message);
-    g_error_free(e);
+  bool error_seen = false;
+  while (GstMessage *msg = gst_bus_pop(bus)) {
+    if (GST_MESSAGE_TYPE(msg) == GST_MESSAGE_ERROR && !error_seen) {
+      GError *e = nullptr;
+      gst_message_parse_error(msg, &e, nullptr);
+      std::fprintf(stderr, "%s: %s\n", who, e->message);
+      g_error_free(e);
+      error_seen = true;
+    } else if (GST_MESSAGE_TYPE(msg) == GST_MESSAGE_ELEMENT && on_element) {
+      on_element(msg);
+    }
     gst_message_unref(msg);
   }
   gst_object_unref(bus);

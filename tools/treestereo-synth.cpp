@@ -42,6 +42,7 @@ int run(int argc, char **argv)
   gdouble distance = 2.0, speed = 0.0, light = 1.0, noise = 2.0, fps = 7.0, baseline = 50.0;
   gchar *size = nullptr, *out = nullptr, *ext = nullptr, *scene = nullptr, *row_gap = nullptr;
   gdouble row_spacing = -1.0;
+  gint touching_pair = -1;
   gint jpeg_quality = 92;
   GOptionEntry entries[] = {
       {"seed", 0, 0, G_OPTION_ARG_INT64, &seed, "Scene seed (default 1)", "N"},
@@ -61,6 +62,8 @@ int run(int argc, char **argv)
        "Gap between neighbouring canopies of the row, m (scene's default)", "MIN:MAX"},
       {"row-spacing", 0, 0, G_OPTION_ARG_DOUBLE, &row_spacing,
        "Distance from the row to the next row behind, m (3.5)", "M"},
+      {"touching-pair", 0, 0, G_OPTION_ARG_INT, &touching_pair,
+       "The canopies of row trees K and K + 1 touch (-1: none)", "K"},
       {nullptr}};
   GOptionContext *ctx = g_option_context_new("- render the synthetic stereo orchard to files");
   g_option_context_set_summary(
@@ -107,6 +110,8 @@ int run(int argc, char **argv)
   }
   if (row_spacing >= 0)
     p.row_spacing_mm = row_spacing * 1000.0;
+  if (touching_pair >= 0)
+    p.touching_pair = touching_pair;
   g_free(scene);
   g_free(row_gap);
   if (size) {

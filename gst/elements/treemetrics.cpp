@@ -204,6 +204,11 @@ struct Along {
   bool has_prev_pts = false;
   GstClockTime prev_pts = GST_CLOCK_TIME_NONE;
   double position_mm = 0;
+  // The rig's speed by the last stereo estimates (mm/s, smoothed), for frames whose estimate
+  // fails, and how long the position has run on it (s).
+  double speed_mm_s = 0;
+  bool has_speed = false;
+  double predicted_s = 0;
   // The last ground plane stereodepth found: the rig is rigid, so a frame whose grass gave no
   // plane (a hedgerow's base hidden, a sparse frame) takes the last one.
   GroundPlane ground;
@@ -332,6 +337,9 @@ static void reset_along(GstTreeMetrics *self)
   self->state->warned_travel = false;
 }
 
+/* How long the position may run on the last measured speed without a new measurement (s). */
+static constexpr double kMaxPredictedS = 1.0;
+
 /* The travel since the previous frame (mm) and where it came from. Keeps this frame's grey views
  * for the next one when the stereo estimate is on. */
 static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *buf,
@@ -421,9 +429,25 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
                      "%.1f ms",
                      m.found ? "found" : "not found", m.travel_mm, m.points, m.tracked, m.inliers,
                      m.rms_px, ms);
+    const double dt_s =
+        had_pts ? double(GST_CLOCK_DIFF(prev_pts, pts)) / double(GST_SECOND) : 0.0;
     if (m.found && std::isfinite(m.travel_mm)) {
       travel_mm = m.travel_mm;
       source = GST_TREE_STEREO_TRAVEL_STEREO;
+      if (dt_s > 0) {
+        const double v = m.travel_mm / dt_s;
+        a.speed_mm_s = a.has_speed ? 0.5 * (a.speed_mm_s + v) : v;
+        a.has_speed = true;
+      }
+      a.predicted_s = 0;
+    } else if (a.has_speed && dt_s > 0 && a.predicted_s + dt_s <= kMaxPredictedS) {
+      // A rig does not stop between two frames: the speed of the last measured frames carries
+      // the position over a frame whose tracks failed (too few at speed, a frame of sky).
+      travel_mm = a.speed_mm_s * dt_s;
+      a.predicted_s += dt_s;
+      source = GST_TREE_STEREO_TRAVEL_PREDICTED;
+    } else {
+      a.has_speed = false;
     }
   }
   a.prev_left = left;

@@ -84,6 +84,7 @@ enum {
   PROP_ROW_GAP_MIN,
   PROP_ROW_GAP_MAX,
   PROP_ROW_SPACING,
+  PROP_TOUCHING_PAIR,
 };
 
 #define DEFAULT_WIDTH 1296
@@ -430,6 +431,11 @@ static void gst_tree_test_src_set_property(GObject *object, guint prop_id, const
     case PROP_ROW_SPACING:
       s.scene.row_spacing_mm = mm_or_default(g_value_get_double(value));
       break;
+    case PROP_TOUCHING_PAIR: {
+      const int k = g_value_get_int(value);
+      s.scene.touching_pair = k < 0 ? SceneParams::kNoTouchingPair : k;
+      break;
+    }
     default:
       G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
       return;
@@ -494,6 +500,11 @@ static void gst_tree_test_src_get_property(GObject *object, guint prop_id, GValu
     break;
   case PROP_ROW_SPACING:
     g_value_set_double(value, m_or_default(s.scene.row_spacing_mm));
+    break;
+  case PROP_TOUCHING_PAIR:
+    g_value_set_int(value, s.scene.touching_pair == SceneParams::kNoTouchingPair
+                               ? -1
+                               : s.scene.touching_pair);
     break;
   default:
     G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
@@ -597,6 +608,15 @@ static void gst_tree_test_src_class_init(GstTreeTestSrcClass *klass)
                  "Distance from the row to the next row behind it (m, 1.5-8; -1 = the scene's "
                  "default 3.5)",
                  -1.0, 8.0, -1.0);
+  g_object_class_install_property(
+      gobject_class, PROP_TOUCHING_PAIR,
+      g_param_spec_int("touching-pair", "Touching pair",
+                       "Orchard and hedgerow: the canopies of row trees K and K + 1 touch "
+                       "(overlapping by 5 cm; tree 0 stands at tree-x, trees ahead count up "
+                       "along the drive); -1 = none",
+                       -1, 100, -1,
+                       GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
+                                   GST_PARAM_MUTABLE_PLAYING)));
 
   gst_element_class_add_static_pad_template(element_class, &src_template);
   gst_element_class_set_static_metadata(

@@ -683,7 +683,7 @@ gst_buffer_add_tree_stereo_truth_meta (GstBuffer * buffer, const GstTreeStereoTr
 static const gchar *index_names[] = { "exg", "exg-exr", "exg-norm", "exg-exr-norm" };
 static const gchar *method_names[] = { "euclidean", "cosine-norm" };
 static const gchar *canopy_mode_names[] = { "colour", "tree", "row" };
-static const gchar *travel_source_names[] = { "none", "stereo", "speed" };
+static const gchar *travel_source_names[] = { "none", "stereo", "speed", "predicted" };
 
 const gchar *
 gst_tree_stereo_vegetation_index_to_string (GstTreeStereoVegetationIndex index)

@@ -148,6 +148,9 @@ void validate_scene_params(const SceneParams &params)
   require(finite(p.row_gap_max_mm) && p.row_gap_max_mm >= p.row_gap_min_mm &&
               p.row_gap_max_mm <= 20000,
           "row_gap_max_mm", p.row_gap_max_mm, "row_gap_min_mm to 20000 mm");
+  require(p.touching_pair == SceneParams::kNoTouchingPair ||
+              (p.touching_pair >= -100 && p.touching_pair <= 100),
+          "touching_pair", p.touching_pair, "-100 to 100 (or none)");
   require(finite(p.row_spacing_mm) && p.row_spacing_mm >= 1500 && p.row_spacing_mm <= 8000,
           "row_spacing_mm", p.row_spacing_mm, "1500 to 8000 mm");
   require(p.row_spacing_mm >= 1.3 * p.canopy_depth_mm, "row_spacing_mm", p.row_spacing_mm,
@@ -355,6 +358,8 @@ Row near_row(const SceneParams &p)
   };
   // gap(k): between the canopies of trees k and k + 1.
   auto gap = [&](std::int64_t k) {
+    if (p.touching_pair != SceneParams::kNoTouchingPair && k == p.touching_pair)
+      return -SceneParams::kTouchingOverlapMm;
     return row_uniform(p, 1, k, 3, p.row_gap_min_mm, p.row_gap_max_mm);
   };
   auto at = [&](std::int64_t k) -> RowSlot & { return row.slots[std::size_t(k + Row::kHalf)]; };

@@ -692,6 +692,28 @@ TEST(SceneOrchard, HedgerowCanopiesTouchOrOverlap)
   EXPECT_GT(count_label(g, SurfaceLabel::RowLeaf), kVga.area() / 10);
 }
 
+TEST(SceneOrchard, ATouchingPairOverlapsAndTheRestKeepTheirGaps)
+{
+  SceneParams p = row_scene(SceneKind::Orchard);
+  p.touching_pair = 2;
+  SceneRenderer r(p);
+  const auto row = r.row_trees(-10000, 10000);
+  ASSERT_GT(row.size(), 10u);
+  int touching = 0;
+  for (std::size_t i = 0; i + 1 < row.size(); ++i) {
+    const double gap = row[i + 1].start_m - row[i].end_m;
+    if (row[i].index == 2) {
+      EXPECT_NEAR(gap, -SceneParams::kTouchingOverlapMm / 1000.0, 1e-6);
+      ++touching;
+    } else {
+      EXPECT_GE(gap, 0.2 - 1e-6);
+    }
+  }
+  EXPECT_EQ(touching, 1);
+  p.touching_pair = 101;
+  EXPECT_THROW(SceneRenderer{p}, std::runtime_error);
+}
+
 TEST(SceneOrchard, TheBackRowStandsRowSpacingBehind)
 {
   SceneParams p = row_scene(SceneKind::Orchard, 0.0);

@@ -909,7 +909,9 @@ GST_START_TEST (test_enum_names)
           (GST_TREE_STEREO_TRAVEL_NONE), "none");
       fail_unless_equals_string (gst_tree_stereo_travel_source_to_string
           (GST_TREE_STEREO_TRAVEL_STEREO), "stereo");
-      fail_unless (gst_tree_stereo_travel_source_to_string (3) == NULL);
+      fail_unless_equals_string (gst_tree_stereo_travel_source_to_string
+          (GST_TREE_STEREO_TRAVEL_PREDICTED), "predicted");
+      fail_unless (gst_tree_stereo_travel_source_to_string (4) == NULL);
       fail_unless (gst_tree_stereo_travel_source_from_string ("speed", &ts));
       fail_unless_equals_int (ts, GST_TREE_STEREO_TRAVEL_SPEED);
       fail_if (gst_tree_stereo_travel_source_from_string ("gnss", &ts));

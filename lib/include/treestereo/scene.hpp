@@ -79,6 +79,12 @@ struct SceneParams {
   double row_gap_min_mm = kSceneDefault;
   double row_gap_max_mm = kSceneDefault;
   double row_spacing_mm = kSceneDefault; // near row to the next row behind: 3500 (1500-8000)
+  // Orchard and Hedgerow: the canopies of near-row trees k and k + 1 touch (they overlap by
+  // kTouchingOverlapMm, whatever the drawn gap), for a row where two trees grew into each
+  // other. kNoTouchingPair: none.
+  static constexpr int kNoTouchingPair = std::numeric_limits<int>::min();
+  static constexpr double kTouchingOverlapMm = 50.0;
+  int touching_pair = kNoTouchingPair;
 
   // Appearance.
   double light = 1.0;                  // light level, 0.7-1.3 is the paper's +-30 %

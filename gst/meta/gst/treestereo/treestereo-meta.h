@@ -441,13 +441,18 @@ typedef struct {
  *   is off): travel 0, the position kept
  * @GST_TREE_STEREO_TRAVEL_STEREO: measured from the stereo views of this frame and the previous
  * @GST_TREE_STEREO_TRAVEL_SPEED: the speed the application set times the time between frames
+ * @GST_TREE_STEREO_TRAVEL_PREDICTED: the stereo estimate failed on this frame; the speed of
+ *   the last frames it measured, times the time between frames (a rig does not stop between
+ *   two frames; after a second without a measurement the travel is "none")
  *
- * Where a frame's travel comes from. Names in messages: "none", "stereo", "speed".
+ * Where a frame's travel comes from. Names in messages: "none", "stereo", "speed",
+ * "predicted".
  */
 typedef enum {
   GST_TREE_STEREO_TRAVEL_NONE = 0,
   GST_TREE_STEREO_TRAVEL_STEREO = 1,
   GST_TREE_STEREO_TRAVEL_SPEED = 2,
+  GST_TREE_STEREO_TRAVEL_PREDICTED = 3,
 } GstTreeStereoTravelSource;
 
 /**
