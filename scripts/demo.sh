@@ -2,8 +2,10 @@
 # The README's main command: installs what is missing, configures, builds, and runs the main job
 # (treestereo-measure) on the embedded synthetic orchard row (the tree in front among its
 # neighbours, the next row behind) - no camera, no files needed. Prints a
-# line of measurements per stereo frame and writes out/demo.jsonl (one JSON object per frame)
-# and out/demo.mp4 (the annotated side-by-side video). Extra arguments go to
+# line of measurements per stereo frame and one per tree as it leaves the view, and writes
+# out/demo.jsonl (one JSON object per frame), out/demo.mp4 (the annotated side-by-side video),
+# out/demo-trees.jsonl (one record per tree) and out/demo-row-map.csv + .png (the row's canopy
+# map: travel along x, height along y, colour = distance). Extra arguments go to
 # treestereo-measure (see build/tools/treestereo-measure --help).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,6 +14,8 @@ bash scripts/build.sh >/dev/null
 build=${TREESTEREO_BUILD_DIR:-build}
 export GST_PLUGIN_PATH_1_0="$PWD/$build/gst/elements${GST_PLUGIN_PATH_1_0:+:$GST_PLUGIN_PATH_1_0}"
 mkdir -p out
-"$build/tools/treestereo-measure" --synthetic --frames 30 \
-  --json out/demo.jsonl --record out/demo.mp4 "$@"
-echo "treestereo: measurements in out/demo.jsonl, annotated video in out/demo.mp4"
+"$build/tools/treestereo-measure" --synthetic --frames 40 --speed 1.0 \
+  --json out/demo.jsonl --record out/demo.mp4 \
+  --trees out/demo-trees.jsonl --row-map out/demo-row-map.csv "$@"
+echo "treestereo: measurements in out/demo.jsonl, annotated video in out/demo.mp4," \
+  "tree records in out/demo-trees.jsonl, row map in out/demo-row-map.csv and .png"

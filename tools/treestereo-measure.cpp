@@ -7,6 +7,7 @@
 // a recording is always playable.
 #include "treestereo/calibration.hpp"
 #include "treestereo/json.hpp"
+#include "treestereo/rowtrack.hpp"
 #include "treestereo/scene.hpp"
 
 #include <gst/gst.h>
@@ -15,6 +16,7 @@
 #include <glib/gstdio.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -51,6 +53,8 @@ struct Options {
   gboolean no_rectify = FALSE;
   // outputs
   gchar *json = nullptr, *csv = nullptr, *record = nullptr;
+  gchar *trees = nullptr, *row_map = nullptr; // tree records (JSON lines), row map (CSV + PNG)
+  gdouble rig_speed = 0;                       // treemetrics speed: the rig's own, m/s (0: stereo)
   gboolean points = FALSE, matches = FALSE, quiet = FALSE;
   gint bitrate = 4000;
 
@@ -61,7 +65,7 @@ struct Options {
   {
     // GOption fills these with g_strdup'ed strings
     for (gchar *s : {left, right, camera_left, camera_right, camera_caps, calibration, size,
-                     scene, index, method, mode, canopy, json, csv, record})
+                     scene, index, method, mode, canopy, json, csv, record, trees, row_map})
       g_free(s);
   }
 };
@@ -169,8 +173,10 @@ struct Job {
   int total_frames = -1; // when known
   GstElement *pipeline = nullptr;
   GMainLoop *loop = nullptr;
-  std::unique_ptr<std::ofstream> json_file, csv_file;
+  std::unique_ptr<std::ofstream> json_file, csv_file, trees_file;
   std::ostream *json = nullptr;
+  std::ostream *trees = nullptr;
+  guint64 n_trees = 0;
   std::ostream *csv = nullptr;
   guint64 frames = 0, present = 0;
   guint64 stop_after = 0; // live cameras: pairs to measure before ending the stream (0: all)
@@ -233,6 +239,12 @@ void write_json(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
   else
     w.key("pts_ns").null();
   if (mm) {
+    // The rig's travel along the row (DESIGN.md "In an orchard"): per frame, not per canopy.
+    const gchar *src = gst_tree_stereo_travel_source_to_string(
+        GstTreeStereoTravelSource(mm->metrics.travel_source));
+    w.field("travel_m", mm->metrics.travel_m)
+        .field("position_m", mm->metrics.position_m)
+        .field("travel_source", src ? src : "none");
     write_metrics_json(w, mm->metrics);
     if (job.o.smoothing > 0 && mm->smoothed.tree_present) {
       w.key("smoothed").begin_object();
@@ -366,6 +378,77 @@ GstPadProbeReturn on_result(GstPad *, GstPadProbeInfo *info, gpointer data)
   return GST_PAD_PROBE_OK;
 }
 
+// A tree record as lib has it (its JSON line has DESIGN.md's names), from the message.
+TreeRecord record_of(const GstTreeStereoTreeRecord &r)
+{
+  TreeRecord t;
+  t.id = int(r.id);
+  t.mode = r.mode == GST_TREE_STEREO_CANOPY_ROW ? CanopyMode::Row : CanopyMode::Tree;
+  t.complete = r.complete;
+  t.start_seen = r.start_seen;
+  t.end_seen = r.end_seen;
+  t.position_m = r.position_m;
+  t.start_m = r.start_m;
+  t.end_m = r.end_m;
+  t.has_height = r.has_height;
+  t.height_m = r.height_m;
+  t.has_width = r.has_width;
+  t.width_m = r.width_m;
+  t.has_depth = r.has_depth;
+  t.distance_m = r.distance_m;
+  t.thickness_m = r.thickness_m;
+  t.confidence = r.confidence;
+  for (guint i = 0; i < r.n_bands; i++) {
+    const GstTreeStereoBand &b = r.bands[i];
+    RecordBand o;
+    o.present = b.present;
+    o.top_m = b.top_m;
+    o.bottom_m = b.bottom_m;
+    o.left_m = b.left_m;
+    o.right_m = b.right_m;
+    o.width_m = b.width_m;
+    o.depth_m = b.depth_m;
+    o.fill = b.fill;
+    t.bands.push_back(o);
+  }
+  t.frames = int(r.frames);
+  t.frames_seen = int(r.frames_seen);
+  t.has_spacing = r.has_spacing;
+  t.spacing_m = r.spacing_m;
+  t.gap_m = r.gap_m;
+  t.lost = r.lost;
+  return t;
+}
+
+// treemetrics' tree records: one JSON line each (--trees) and a line of the summary.
+void on_tree(Job &job, GstMessage *msg)
+{
+  const GstStructure *st = gst_message_get_structure(msg);
+  if (!st || !gst_structure_has_name(st, GST_TREE_STEREO_MESSAGE_TREE))
+    return;
+  GstTreeStereoTreeRecord r = {};
+  if (!gst_tree_stereo_tree_message_parse(st, &r, nullptr))
+    return;
+  job.n_trees++;
+  if (job.trees) {
+    *job.trees << to_json(record_of(r)) << "\n";
+    job.trees->flush();
+  }
+  if (!job.o.quiet && job.json != &std::cout && job.trees != &std::cout) {
+    const char *what = r.mode == GST_TREE_STEREO_CANOPY_ROW ? "canopy" : "tree";
+    std::printf("%s %u at %.2f m along the row (%.2f-%.2f m)", what, r.id, r.position_m,
+                r.start_m, r.end_m);
+    if (r.has_height)
+      std::printf("  height %.3f m", r.height_m);
+    if (r.has_width)
+      std::printf("  width %.3f m", r.width_m);
+    if (r.has_depth)
+      std::printf("  distance %.3f m", r.distance_m);
+    std::printf("%s\n", r.complete ? "" : "  (never wholly in view)");
+  }
+  gst_tree_stereo_tree_record_clear(&r);
+}
+
 gboolean on_bus(GstBus *, GstMessage *msg, gpointer data)
 {
   Job &job = *static_cast<Job *>(data);
@@ -394,6 +477,9 @@ gboolean on_bus(GstBus *, GstMessage *msg, gpointer data)
   }
   case GST_MESSAGE_EOS:
     g_main_loop_quit(job.loop);
+    break;
+  case GST_MESSAGE_ELEMENT:
+    on_tree(job, msg);
     break;
   default:
     break;
@@ -480,6 +566,10 @@ std::string build_description(Job &job)
     << (o.canopy ? std::string(" canopy=") + o.canopy : "")
     << " min-depth=" << o.min_depth << " max-depth=" << o.max_depth;
   d << " ! treemetrics name=metrics bands=" << o.bands << " smoothing=" << o.smoothing;
+  if (o.rig_speed > 0)
+    d << " speed=" << o.rig_speed;
+  if (o.row_map)
+    d << " row-map-location=" << quoted(o.row_map);
   if (o.record) {
     d << " ! tee name=t t. ! queue ! fakesink name=results sync=false async=false"
       << " t. ! queue ! treeoverlay ! videoconvert ! video/x-raw,format=I420 ! x264enc bitrate="
@@ -570,6 +660,13 @@ int run(int argc, char **argv)
       {"json", 'j', 0, G_OPTION_ARG_FILENAME, &o.json, "JSON lines, one per frame ('-' = stdout)",
        "FILE"},
       {"csv", 0, 0, G_OPTION_ARG_FILENAME, &o.csv, "CSV, one row per frame", "FILE"},
+      {"trees", 0, 0, G_OPTION_ARG_FILENAME, &o.trees,
+       "Tree records, one JSON line per tree as it leaves the view ('-' = stdout)", "FILE"},
+      {"row-map", 0, 0, G_OPTION_ARG_FILENAME, &o.row_map,
+       "Row canopy map: CSV here, PNG beside it (FILE with .png), written at the end", "FILE.csv"},
+      {"rig-speed", 0, 0, G_OPTION_ARG_DOUBLE, &o.rig_speed,
+       "The rig's speed from outside (wheel odometry, GNSS), m/s; 0 = measured by stereo (0)",
+       "M/S"},
       {"points", 0, 0, G_OPTION_ARG_NONE, &o.points, "Add the 3D points to the JSON", nullptr},
       {"matches", 0, 0, G_OPTION_ARG_NONE, &o.matches, "Add the matches to the JSON", nullptr},
       {"record", 'r', 0, G_OPTION_ARG_FILENAME, &o.record, "Annotated video (MP4, H.264)",
@@ -652,6 +749,18 @@ int run(int argc, char **argv)
       job.json = job.json_file.get();
     }
   }
+  if (o.trees) {
+    if (std::string(o.trees) == "-") {
+      job.trees = &std::cout;
+    } else {
+      job.trees_file = std::make_unique<std::ofstream>(o.trees);
+      if (!*job.trees_file)
+        throw std::runtime_error(std::string("cannot write ") + o.trees);
+      job.trees = job.trees_file.get();
+    }
+  }
+  if (o.rig_speed < 0 || !std::isfinite(o.rig_speed))
+    usage_error("--rig-speed must be 0 (measured) or a speed in m/s");
   if (o.csv) {
     job.csv_file = std::make_unique<std::ofstream>(o.csv);
     if (!*job.csv_file)
@@ -713,8 +822,9 @@ int run(int argc, char **argv)
     std::fprintf(stderr, "\n");
   std::fprintf(stderr,
                "treestereo-measure: %" G_GUINT64_FORMAT " frames (%" G_GUINT64_FORMAT
-               " with a tree) in %.1f s (%.2f frames/s)%s%s\n",
-               job.frames, job.present, elapsed, elapsed > 0 ? job.frames / elapsed : 0.0,
+               " with a tree, %" G_GUINT64_FORMAT " tree records) in %.1f s (%.2f frames/s)%s%s\n",
+               job.frames, job.present, job.n_trees, elapsed,
+               elapsed > 0 ? job.frames / elapsed : 0.0,
                o.record ? ", video: " : "", o.record ? o.record : "");
   if (!job.temp_calibration.empty()) {
     g_unlink(job.temp_calibration.c_str());

@@ -4,6 +4,7 @@
 #     per frame with DESIGN.md's fields, a CSV row per frame, a summary line per frame with the
 #     confidence, and an MP4 that decodes to exactly as many frames; distances near the truth;
 #     --scene and --canopy reach treetestsrc and stereodepth (canopy_mode in the JSON);
+#     a drive-by: the position since the start, tree records and the row map against the truth;
 #  2. the committed image sequences with their calibration, as files and as MP4 videos;
 #  3. usage errors exit 2 (also an unknown --scene or --canopy, --scene without --synthetic),
 #     pipeline errors exit 1 with a message naming the problem;
@@ -90,6 +91,44 @@ canopy_mode_is "$tmp/l.jsonl" colour || fail "--canopy off"
 "$measure" --synthetic --scene hedgerow --canopy row --frames 2 --size 640x480 \
   --json "$tmp/h.jsonl" --quiet >"$tmp/h.out" 2>&1 || { cat "$tmp/h.out"; fail "--scene hedgerow --canopy row run"; }
 canopy_mode_is "$tmp/h.jsonl" row || fail "--canopy row"
+
+# 1c. along the row: a drive-by at 2 m/s; tree records (--trees) against the renderer's row
+# (treestereo-synth's truth.json of the same scene), the position since the start in the JSON,
+# the row map's CSV and PNG (--row-map)
+synth="$(dirname "$measure")/treestereo-synth"
+"$measure" --synthetic --speed 2 --frames 24 --size 640x480 --json "$tmp/d.jsonl" \
+  --trees "$tmp/d-trees.jsonl" --row-map "$tmp/d-map.csv" >"$tmp/d.out" 2>&1 || { cat "$tmp/d.out"; fail "drive-by run"; }
+"$synth" --scene orchard --speed 2 --frames 24 --size 640x480 --format jpg -o "$tmp/d-truth" \
+  >/dev/null 2>&1 || fail "treestereo-synth for the drive-by's truth"
+grep -q '^tree [0-9]* at ' "$tmp/d.out" || { cat "$tmp/d.out"; fail "no tree line in the summary"; }
+python3 - "$tmp/d.jsonl" "$tmp/d-trees.jsonl" "$tmp/d-truth/truth.json" "$tmp/d-map.csv" <<'PY' || fail "drive-by records"
+import csv, json, sys
+frames = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+records = [json.loads(l) for l in open(sys.argv[2]) if l.strip()]
+truth = json.load(open(sys.argv[3]))
+row = {t["index"]: t for f in truth["frames"] for t in f["row_trees"]}
+# the position since the start: 23 frames of 2/7 m
+pos, want = frames[-1]["position_m"], 23 * 2.0 / 7.0
+assert abs(pos - want) <= 0.03 * want, f"position {pos:.3f} m after 23 frames, truth {want:.3f}"
+assert all("travel_m" in f and f["travel_source"] in ("none", "stereo", "predicted") for f in frames)
+for r in records:
+    for k in ("id", "position_m", "start_m", "end_m", "frames", "complete"):
+        assert k in r, f"record without {k}: {r}"
+complete = [r for r in records if r["complete"]]
+assert len(complete) >= 2, f"{len(complete)} complete tree records of {len(records)}"
+for r in complete:
+    for k in ("distance_m", "height_m", "width_m", "thickness_m", "bands", "confidence"):
+        assert k in r, f"complete record without {k}: {r}"
+    t = min(row.values(), key=lambda t: abs(t["x_m"] - r["position_m"]))
+    centre = 0.5 * (t["start_m"] + t["end_m"])
+    # the record's place: 5 cm, plus the position's drift since the start (3 %, as above)
+    assert abs(r["position_m"] - centre) <= 0.05 + 0.03 * abs(centre), f"tree {r['id']} at {r['position_m']:.3f} m, truth {centre:.3f}"
+    assert abs(r["height_m"] - t["height_m"]) <= 0.08 * t["height_m"], f"tree {r['id']} height {r['height_m']:.3f}, truth {t['height_m']:.3f}"
+rows = list(csv.DictReader(open(sys.argv[4])))
+assert rows and list(rows[0].keys()) == ["position_m", "band", "present", "distance_m", "fill"], "row map CSV header"
+assert any(r["present"] == "1" for r in rows) and any(r["present"] == "0" for r in rows), "row map without canopy or without gaps"
+PY
+[ -s "$tmp/d-map.png" ] || fail "the row map's PNG was not written beside the CSV"
 
 # 2. image sequences (the committed fixtures) with their calibration
 fx="$src/tests/fixtures/seq-static"

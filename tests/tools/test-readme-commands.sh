@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The README's two commands are run as "./scripts/<name>.sh" from a fresh clone: each must be a
 # file that git records as executable (mode 100755; a checkout gives 100644 files no x bit, and
-# "./scripts/demo.sh" then fails with "Permission denied", as it did until session 3).
+# "./scripts/demo.sh" then fails with "Permission denied").
 set -euo pipefail
 src=${TREESTEREO_SOURCE_DIR:?}
 cd "$src"
