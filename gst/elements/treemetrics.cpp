@@ -297,12 +297,13 @@ static void warn_missing(GstTreeMetrics *self, bool veg, bool points)
                        points ? "present" : "missing"));
 }
 
-/* Posts one "treestereo-tree" message per record (no lock held) and keeps the records for the
- * row map's picture. */
+/* Posts one "treestereo-tree" message per record (no lock held) and, when a row map is asked
+ * for, keeps the records for its picture (not otherwise: a long run would hold every tree). */
 static void post_records(GstTreeMetrics *self, const std::vector<TreeRecord> &records,
                          const GstTreeStereoTimes *times)
 {
   State *st = self->state;
+  const bool keep = !snapshot(self).row_map_location.empty();
   for (const TreeRecord &r : records) {
     GST_DEBUG_OBJECT(self, "tree %d leaves: %.3f..%.3f m, %d frames%s", r.id, r.start_m, r.end_m,
                      r.frames, r.complete ? "" : " (incomplete)");
@@ -311,7 +312,8 @@ static void post_records(GstTreeMetrics *self, const std::vector<TreeRecord> &re
     treestereo::gst::post_element_message(GST_ELEMENT(self),
                                           gst_tree_stereo_tree_message_structure(&g, times));
     gst_tree_stereo_tree_record_clear(&g);
-    st->along.records.push_back(r);
+    if (keep)
+      st->along.records.push_back(r);
   }
 }
 

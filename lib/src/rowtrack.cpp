@@ -42,6 +42,18 @@ void check_frame(const TrackFrame &f)
                                "near_mm above 0");
 }
 
+// A track keeps at most this many samples of each figure (the latest): a tree in view for longer
+// (a rig standing in front of it) is measured by its last 64 frames, and a long stop does not
+// grow the tracker without bound.
+constexpr std::size_t kMaxSamples = 64;
+
+template <typename T> void push_capped(std::vector<T> &v, T value)
+{
+  if (v.size() >= kMaxSamples)
+    v.erase(v.begin());
+  v.push_back(std::move(value));
+}
+
 double median_of(std::vector<double> v)
 {
   return median(v);
@@ -308,9 +320,9 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
     k.max_hi_mm = std::max(k.max_hi_mm, hi);
     k.near_mm = near;
     if (!cut_lo)
-      k.starts.push_back(lo);
+      push_capped(k.starts, lo);
     if (!cut_hi)
-      k.ends.push_back(hi);
+      push_capped(k.ends, hi);
     ++k.frames_seen;
     k.missed = 0;
     // The measurement counts when it is of this tree whole: mode Tree, a tree split over
@@ -319,17 +331,17 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
       continue;
     const Clipped &c = m.clipped;
     if (!c.top && !c.bottom) {
-      k.heights.push_back(m.height_m);
+      push_capped(k.heights, m.height_m);
     }
     if (row || c.left || c.right || cut_lo || cut_hi)
       ; // width: mode Row has none (the extent in view); a cut or clipped side is a lower bound
     else
-      k.widths.push_back(m.width_m);
+      push_capped(k.widths, m.width_m);
     if (c.any() || cut_lo || cut_hi)
       continue;
-    k.distances.push_back(m.distance_m);
-    k.thicknesses.push_back(m.thickness_m);
-    k.confidences.push_back(m.confidence);
+    push_capped(k.distances, m.distance_m);
+    push_capped(k.thicknesses, m.thickness_m);
+    push_capped(k.confidences, m.confidence);
     std::vector<RecordBand> bands;
     for (const Band &b : m.bands) {
       RecordBand r;
@@ -343,7 +355,7 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
       r.fill = b.fill;
       bands.push_back(r);
     }
-    k.bands.push_back(std::move(bands));
+    push_capped(k.bands, std::move(bands));
   }
 
   // Mode Row: canopies that now overlap are one (a segment reached across to the next track).

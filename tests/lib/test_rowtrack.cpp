@@ -450,6 +450,39 @@ TEST(TreeTracker, RemnantAtTheTrailingEdgeIsNoNewTree)
     EXPECT_EQ(got[i].record.id, int(i) + 1);
 }
 
+TEST(TreeTracker, AStandingRigIsMeasuredByItsLatestFrames)
+{
+  // The rig stands in front of one tree for 200 frames: the tree reads 1.0 m high for 136 frames,
+  // then 0.8 m. A track keeps its latest 64 samples, so the record says 0.8 m (all 200 would
+  // give 1.0 m) and a long stop does not grow the tracker without bound.
+  TreeTracker tracker;
+  for (int f = 0; f < 200; ++f) {
+    TrackFrame tf;
+    tf.position_mm = 0;
+    tf.left_slope = kLeftSlope;
+    tf.right_slope = kRightSlope;
+    RowSegment seg;
+    seg.lo_mm = -350;
+    seg.hi_mm = 350;
+    seg.near_mm = kNear;
+    seg.n_points = 500;
+    seg.selected = true;
+    tf.segments = {seg};
+    tf.metrics.tree_present = true;
+    tf.metrics.height_m = f < 136 ? 1.0 : 0.8;
+    tf.metrics.width_m = 0.7;
+    tf.metrics.distance_m = 2.0;
+    tf.measured_segment = 0;
+    EXPECT_TRUE(tracker.update(tf).empty()) << f;
+  }
+  const auto rec = tracker.finish();
+  ASSERT_EQ(rec.size(), 1u);
+  ASSERT_TRUE(rec[0].has_height);
+  EXPECT_NEAR(rec[0].height_m, 0.8, 1e-9);
+  EXPECT_NEAR(rec[0].width_m, 0.7, 1e-9);
+  EXPECT_EQ(rec[0].frames_seen, 200);
+}
+
 TEST(TreeTracker, JsonLineHasTheDesignNames)
 {
   Sim sim;
