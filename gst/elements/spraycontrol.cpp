@@ -143,6 +143,13 @@ struct Plan {
   long next_bin = LONG_MIN;
   GroundPlane ground; // the last one found: the rig is rigid
   GstClockID hold_id = nullptr;
+  // Upstream is live (a camera): a gap in the arrivals is a gap in the data. Offline (files,
+  // a synthetic source not synced) frames arrive at the pace of the processing, and only gaps
+  // in the running times count.
+  bool live = false;
+  bool live_known = false;
+  GstClockTime arrival = 0;  // clock time the last frame arrived
+  std::int64_t last_running = 0; // its running time
   bool post_messages = true;
   guint hold_ms = DEFAULT_HOLD_TIME;
   const char *fallback_name = "on";
@@ -207,49 +214,72 @@ static void unschedule_hold(Plan &p)
   }
 }
 
+/* What the fail-safe did, to post with no lock held. */
+struct FallbackEvent {
+  bool entered = false;
+  std::vector<SectionCommand> commands;
+  bool post = false;
+  guint hold_ms = 0;
+  const char *fallback = "";
+};
+
+/* Called with plan_lock held: the planner's fail-safe at @running_ns (no data since its last). */
+static FallbackEvent check_hold(Plan &p, std::int64_t running_ns)
+{
+  FallbackEvent ev;
+  if (!p.planner)
+    return ev;
+  const bool was = p.planner->in_fallback();
+  ev.commands = p.planner->tick(running_ns);
+  ev.entered = !was && p.planner->in_fallback();
+  ev.post = p.post_messages;
+  ev.hold_ms = p.hold_ms;
+  ev.fallback = p.fallback_name;
+  return ev;
+}
+
+static void post_fallback(GstSprayControl *self, const FallbackEvent &ev)
+{
+  if (ev.entered)
+    GST_ELEMENT_WARNING(self, STREAM, FAILED,
+                        ("No frame with the rig's position for %u ms (hold-time): every nozzle "
+                         "section set to the fallback state \"%s\" until frames resume",
+                         ev.hold_ms, ev.fallback),
+                        ("no buffer with a metrics meta for hold-time; fallback %s", ev.fallback));
+  post_commands(self, ev.commands, ev.post, true);
+}
+
 static gboolean hold_expired(GstClock *, GstClockTime time, GstClockID id, gpointer user_data)
 {
   GstSprayControl *self = GST_SPRAY_CONTROL(user_data);
   State *st = self->state;
-  std::vector<SectionCommand> commands;
-  bool post = false, entered = false;
-  guint hold_ms = 0;
-  const char *fallback = "";
+  FallbackEvent ev;
   {
     std::lock_guard<std::mutex> lock(st->plan_lock);
     Plan &p = st->plan;
     if (p.hold_id != id || !p.planner)
       return TRUE; // replaced by a newer frame's, or the stream stopped
-    const std::int64_t running =
-        std::int64_t(time) - std::int64_t(gst_element_get_base_time(GST_ELEMENT(self)));
-    const bool was = p.planner->in_fallback();
-    commands = p.planner->tick(running);
-    entered = !was && p.planner->in_fallback();
-    post = p.post_messages;
-    hold_ms = p.hold_ms;
-    fallback = p.fallback_name;
+    // The running time now: the last frame's plus the clock time since it arrived.
+    const std::int64_t elapsed = time > p.arrival ? std::int64_t(time - p.arrival) : 0;
+    ev = check_hold(p, p.last_running + elapsed);
   }
-  if (entered) {
-    GST_ELEMENT_WARNING(self, STREAM, FAILED,
-                        ("No frame with the rig's position for %u ms (hold-time): every nozzle "
-                         "section set to the fallback state \"%s\" until frames resume",
-                         hold_ms, fallback),
-                        ("no buffer with a metrics meta for hold-time; fallback %s", fallback));
-  }
-  post_commands(self, commands, post, true);
+  post_fallback(self, ev);
   return TRUE;
 }
 
-/* Called with plan_lock held: the hold callback hold-time after the frame at @running_ns. */
+/* Called with plan_lock held: the hold callback hold-time after this frame's arrival (live
+ * upstream only). */
 static void schedule_hold(GstSprayControl *self, Plan &p, std::int64_t running_ns)
 {
   unschedule_hold(p);
+  if (!p.live)
+    return;
   GstClock *clock = gst_element_get_clock(GST_ELEMENT(self));
   if (!clock)
     return; // not PLAYING on a clock: no camera gap to notice
-  const GstClockTime at = gst_element_get_base_time(GST_ELEMENT(self)) + GstClockTime(running_ns) +
-                          GstClockTime(p.hold_ms) * GST_MSECOND;
-  p.hold_id = gst_clock_new_single_shot_id(clock, at);
+  p.arrival = gst_clock_get_time(clock);
+  p.last_running = running_ns;
+  p.hold_id = gst_clock_new_single_shot_id(clock, p.arrival + GstClockTime(p.hold_ms) * GST_MSECOND);
   gst_object_unref(clock);
   if (gst_clock_id_wait_async(p.hold_id, hold_expired, gst_object_ref(self),
                               (GDestroyNotify)gst_object_unref) != GST_CLOCK_OK) {
@@ -321,14 +351,35 @@ static GstFlowReturn gst_spray_control_transform_ip(GstBaseTransform *trans, Gst
   const GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(buf);
   const double position_m = mm->metrics.position_m;
 
+  gboolean live = FALSE;
+  bool query_live = false;
+  {
+    std::lock_guard<std::mutex> lock(st->plan_lock);
+    query_live = !st->plan.live_known;
+  }
+  if (query_live) { // no lock held: the query travels upstream
+    GstQuery *q = gst_query_new_latency();
+    if (gst_pad_peer_query(GST_BASE_TRANSFORM_SINK_PAD(trans), q))
+      gst_query_parse_latency(q, &live, nullptr, nullptr);
+    gst_query_unref(q);
+  }
+
   std::vector<SectionCommand> commands;
+  FallbackEvent gap;
   const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
     std::lock_guard<std::mutex> lock(st->plan_lock);
     Plan &p = st->plan;
+    if (query_live) {
+      p.live = live != FALSE;
+      p.live_known = true;
+    }
     if (!p.map)
       p.map = std::make_unique<RowMap>();
     if (!p.planner)
       start_plan(p, s, p.map->n_bands());
+    // A gap in the running times (a recording with frames missing, or the clock callback not
+    // yet run): the fail-safe first, then this frame resumes control.
+    gap = check_hold(p, std::int64_t(running));
     p.post_messages = s.post_messages;
     if (canopy && canopy->ground_found)
       p.ground = treestereo::gst::ground_from_meta(canopy);
@@ -345,6 +396,7 @@ static GstFlowReturn gst_spray_control_transform_ip(GstBaseTransform *trans, Gst
   });
   if (!ok)
     return GST_FLOW_ERROR;
+  post_fallback(self, gap);
   post_commands(self, commands, s.post_messages, false);
   return GST_FLOW_OK;
 }

@@ -280,10 +280,11 @@ GST_START_TEST(test_fail_safe_after_hold_time)
     int warnings = 0;
     std::string text;
     fail_unless(commands(r.bus, &warnings).empty()); // the canopy is still ahead of the nozzles
-    // Frames stop at 1.0 s: the callback due hold-time later sets the fallback.
+    // Frames stop at 1.0 s: the callback due hold-time after the last arrival (the test clock
+    // at 0) sets the fallback.
     fail_unless(gst_harness_crank_single_clock_wait(r.h));
     fail_unless_equals_uint64(gst_clock_get_time(GST_ELEMENT_CLOCK(r.h->element)),
-                              1500 * GST_MSECOND);
+                              500 * GST_MSECOND);
     const auto c = commands(r.bus, &warnings, &text);
     fail_unless_equals_int(warnings, 1);
     fail_unless(text.find("hold-time") != std::string::npos, "%s", text.c_str());
@@ -308,6 +309,34 @@ GST_START_TEST(test_fail_safe_after_hold_time)
     fail_unless(canopy_command, "no command after frames resumed (fallback %s)", fallback);
     harness_free(r);
   }
+}
+GST_END_TEST;
+
+GST_START_TEST(test_fail_safe_on_a_gap_in_the_running_times)
+{
+  // Frames up to 1.0 s, the next at 1.6 s (a recording with frames missing): the fallback is
+  // posted when that frame comes, before its own commands.
+  Harness r = harness("hold-time=500");
+  const Canopy canopy = {{0.5, 5.0}};
+  for (int i = 0; i <= 10; i++) {
+    fail_unless_equals_int(
+        gst_harness_push(r.h, frame(GstClockTime(i) * kFrame, kP0 + 0.1 * i, canopy)),
+        GST_FLOW_OK);
+    gst_buffer_unref(gst_harness_pull(r.h));
+  }
+  int warnings = 0;
+  fail_unless(commands(r.bus, &warnings).empty());
+  fail_unless_equals_int(
+      gst_harness_push(r.h, frame(16 * kFrame, kP0 + 1.6, canopy)), GST_FLOW_OK);
+  gst_buffer_unref(gst_harness_pull(r.h));
+  const auto c = commands(r.bus, &warnings);
+  fail_unless_equals_int(warnings, 1);
+  fail_unless(c.size() >= 4);
+  for (guint k = 0; k < 4; k++) {
+    fail_unless(c[k].fallback && c[k].on);
+    fail_unless_equals_int64(c[k].at_ns, gint64(1600 * GST_MSECOND));
+  }
+  harness_free(r);
 }
 GST_END_TEST;
 
@@ -372,6 +401,7 @@ static Suite *spraycontrol_suite(void)
   tcase_add_test(tc, test_min_gap_and_min_canopy);
   tcase_add_test(tc, test_speed_change_halfway);
   tcase_add_test(tc, test_fail_safe_after_hold_time);
+  tcase_add_test(tc, test_fail_safe_on_a_gap_in_the_running_times);
   tcase_add_test(tc, test_bad_section_heights_is_a_named_error);
   tcase_add_test(tc, test_section_message_round_trip);
   return s;
