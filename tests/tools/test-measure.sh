@@ -142,6 +142,17 @@ for k in sorted({c["section"] for c in commands}):
     for c in mine:
         if c["on"]:
             assert any(r["start_m"] - 0.1 <= c["position_m"] <= r["end_m"] + 0.1 for r in records), f"section {k} opens at {c['position_m']} m, no tree there"
+# against the renderer's trees: section 1 (0.7-1.0 m, where the canopies are widest) opens and
+# closes within one frame's travel (2/7 m, plus the position's 3 % drift) of each tree's start and
+# end, for the trees whose end the rig passed (bins are final once behind the camera)
+s1 = [c for c in commands if c["section"] == 1]
+for t in row.values():
+    if t["end_m"] > pos - 0.3:
+        continue
+    for edge, on in ((t["start_m"], True), (t["end_m"], False)):
+        tol = 2.0 / 7.0 + 0.03 * abs(edge)
+        near = min((c for c in s1 if c["on"] == on), key=lambda c: abs(c["position_m"] - edge))
+        assert abs(near["position_m"] - edge) <= tol, f"section 1 {'on' if on else 'off'} at {near['position_m']} m, tree edge {edge:.3f} m"
 PY
 [ -s "$tmp/d-map.png" ] || fail "the row map's PNG was not written beside the CSV"
 
