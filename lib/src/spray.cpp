@@ -248,8 +248,6 @@ std::vector<SectionCommand> SprayPlanner::update(std::int64_t running_ns, double
 {
   if (!std::isfinite(position_m))
     throw std::runtime_error("spray: the rig's position must be finite");
-  if (!samples_.empty() && running_ns <= samples_.back().t)
-    return {}; // a frame not later than the last: nothing new to time with
   for (const SpraySlice &sl : slices)
     if (int(sl.sections.size()) != p_.n_sections)
       throw std::runtime_error("spray: a slice with " + std::to_string(sl.sections.size()) +
@@ -265,10 +263,13 @@ std::vector<SectionCommand> SprayPlanner::update(std::int64_t running_ns, double
     }
     have_frontier_ = false;
   }
-  frame_ns_ = samples_.empty() ? 0 : running_ns - samples_.back().t;
-  samples_.push_back({running_ns, position_m});
-  while (samples_.size() > 2 && running_ns - samples_[1].t > p_.speed_window_ns)
-    samples_.pop_front();
+  // A frame not later than the last adds no speed sample (its slices still count).
+  if (samples_.empty() || running_ns > samples_.back().t) {
+    frame_ns_ = samples_.empty() ? 0 : running_ns - samples_.back().t;
+    samples_.push_back({running_ns, position_m});
+    while (samples_.size() > 2 && running_ns - samples_[1].t > p_.speed_window_ns)
+      samples_.pop_front();
+  }
 
   for (const SpraySlice &sl : slices) {
     if (have_frontier_ && sl.end_m <= frontier_ + kEps)

@@ -319,6 +319,31 @@ TEST(Spray, SectionHeights)
   EXPECT_EQ(sections_of(cells, {400, 700, 1000, 1300}, {}).size(), 3u);
 }
 
+TEST(Spray, RepeatedTimestampKeepsItsSlices)
+{
+  // A frame with the previous one's running time: no speed sample, but its slices are planned.
+  SprayPlanner planner(one_section());
+  planner.update(0, 0.0, {});
+  planner.update(100 * kMs, 0.1, {});
+  std::vector<SpraySlice> slices;
+  for (int b = 0; b < 4; ++b) {
+    SpraySlice s;
+    s.start_m = b * kBin;
+    s.end_m = (b + 1) * kBin;
+    SliceSection on;
+    on.present = true;
+    on.fill = on.width_share = 1;
+    s.sections = {on};
+    slices.push_back(s);
+  }
+  EXPECT_TRUE(planner.update(100 * kMs, 0.1, slices).empty());
+  EXPECT_DOUBLE_EQ(planner.speed_m_s(), 1.0);
+  const std::vector<SectionCommand> c = planner.finish();
+  ASSERT_EQ(c.size(), 1u);
+  EXPECT_TRUE(c[0].on);
+  EXPECT_NEAR(double(c[0].at_ns), 100e6 + (0.0 + 1.5 - 0.1) * 1e9 - 160e6, 2);
+}
+
 TEST(Spray, ParamsValidated)
 {
   SprayParams p;
