@@ -54,6 +54,7 @@ struct Options {
   // outputs
   gchar *json = nullptr, *csv = nullptr, *record = nullptr;
   gchar *trees = nullptr, *row_map = nullptr; // tree records (JSON lines), row map (CSV + PNG)
+  gchar *sections = nullptr; // nozzle-section commands (JSON lines)
   gdouble rig_speed = 0;                       // treemetrics speed: the rig's own, m/s (0: stereo)
   gboolean points = FALSE, matches = FALSE, quiet = FALSE;
   gint bitrate = 4000;
@@ -65,7 +66,7 @@ struct Options {
   {
     // GOption fills these with g_strdup'ed strings
     for (gchar *s : {left, right, camera_left, camera_right, camera_caps, calibration, size,
-                     scene, index, method, mode, canopy, json, csv, record, trees, row_map})
+                     scene, index, method, mode, canopy, json, csv, record, trees, row_map, sections})
       g_free(s);
   }
 };
@@ -173,10 +174,12 @@ struct Job {
   int total_frames = -1; // when known
   GstElement *pipeline = nullptr;
   GMainLoop *loop = nullptr;
-  std::unique_ptr<std::ofstream> json_file, csv_file, trees_file;
+  std::unique_ptr<std::ofstream> json_file, csv_file, trees_file, sections_file;
   std::ostream *json = nullptr;
   std::ostream *trees = nullptr;
   guint64 n_trees = 0;
+  std::ostream *sections = nullptr; // spraycontrol's commands, one JSON line each
+  guint64 n_commands = 0;
   std::ostream *csv = nullptr;
   guint64 frames = 0, present = 0;
   guint64 stop_after = 0; // live cameras: pairs to measure before ending the stream (0: all)
@@ -420,6 +423,31 @@ TreeRecord record_of(const GstTreeStereoTreeRecord &r)
   return t;
 }
 
+// spraycontrol's valve commands: one JSON line each (--sections), DESIGN.md's section command.
+void on_section(Job &job, GstMessage *msg)
+{
+  const GstStructure *st = gst_message_get_structure(msg);
+  if (!st || !gst_structure_has_name(st, GST_TREE_STEREO_MESSAGE_SECTION) || !job.sections)
+    return;
+  GstTreeStereoSectionCommand c;
+  if (!gst_tree_stereo_section_message_parse(st, &c))
+    return;
+  job.n_commands++;
+  std::ostringstream line;
+  JsonWriter w(line);
+  w.begin_object()
+      .field("section", c.section)
+      .field("on", bool(c.on))
+      .field("rate", c.rate)
+      .field("at_ns", static_cast<long long>(c.at_ns))
+      .field("position_m", c.position_m);
+  if (c.fallback)
+    w.field("fallback", true); // the fail-safe's, after a gap in the frames
+  w.end_object();
+  *job.sections << line.str() << "\n";
+  job.sections->flush();
+}
+
 // treemetrics' tree records: one JSON line each (--trees) and a line of the summary.
 void on_tree(Job &job, GstMessage *msg)
 {
@@ -480,6 +508,7 @@ gboolean on_bus(GstBus *, GstMessage *msg, gpointer data)
     break;
   case GST_MESSAGE_ELEMENT:
     on_tree(job, msg);
+    on_section(job, msg);
     break;
   default:
     break;
@@ -570,6 +599,8 @@ std::string build_description(Job &job)
     d << " speed=" << o.rig_speed;
   if (o.row_map)
     d << " row-map-location=" << quoted(o.row_map);
+  if (o.sections)
+    d << " ! spraycontrol name=spray";
   if (o.record) {
     d << " ! tee name=t t. ! queue ! fakesink name=results sync=false async=false"
       << " t. ! queue ! treeoverlay ! videoconvert ! video/x-raw,format=I420 ! x264enc bitrate="
@@ -664,6 +695,10 @@ int run(int argc, char **argv)
        "Tree records, one JSON line per tree as it leaves the view ('-' = stdout)", "FILE"},
       {"row-map", 0, 0, G_OPTION_ARG_FILENAME, &o.row_map,
        "Row canopy map: CSV here, PNG beside it (FILE with .png), written at the end", "FILE.csv"},
+      {"sections", 0, 0, G_OPTION_ARG_FILENAME, &o.sections,
+       "Nozzle-section valve commands (spraycontrol, defaults of docs/spraying.md), one JSON "
+       "line each ('-' = stdout)",
+       "FILE"},
       {"rig-speed", 0, 0, G_OPTION_ARG_DOUBLE, &o.rig_speed,
        "The rig's speed from outside (wheel odometry, GNSS), m/s; 0 = measured by stereo (0)",
        "M/S"},
@@ -757,6 +792,16 @@ int run(int argc, char **argv)
       if (!*job.trees_file)
         throw std::runtime_error(std::string("cannot write ") + o.trees);
       job.trees = job.trees_file.get();
+    }
+  }
+  if (o.sections) {
+    if (std::string(o.sections) == "-") {
+      job.sections = &std::cout;
+    } else {
+      job.sections_file = std::make_unique<std::ofstream>(o.sections);
+      if (!*job.sections_file)
+        throw std::runtime_error(std::string("cannot write ") + o.sections);
+      job.sections = job.sections_file.get();
     }
   }
   if (o.rig_speed < 0 || !std::isfinite(o.rig_speed))

@@ -488,6 +488,19 @@ TreeMetrics metrics_from_meta(const GstTreeStereoMetrics *m)
   return t;
 }
 
+void feed_row_map(RowMap &map, GstBuffer *buf, const StereoGeometry &geometry,
+                  const GstTreeStereoCanopyMeta *canopy, const GstTreeStereoPointsMeta *pm,
+                  const GroundPlane &ground, double position_mm)
+{
+  const MappedSilhouette sil(canopy ? &canopy->view : nullptr);
+  cv::Mat mask = sil.get().mask;
+  if (mask.empty() || mask.size() != geometry.view_size)
+    mask = cv::Mat::zeros(geometry.view_size, CV_8U); // no canopy in view: all seen empty
+  const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
+  map.add_frame(mask, pixel_points_of(pm, mm, guint(geometry.view_size.width)), geometry, ground,
+                position_mm);
+}
+
 void post_element_message(GstElement *element, GstStructure *s)
 {
   gst_element_post_message(element, gst_message_new_element(GST_OBJECT(element), s));

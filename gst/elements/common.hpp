@@ -10,6 +10,7 @@
 
 #include "treestereo/canopy.hpp"
 #include "treestereo/metrics.hpp"
+#include "treestereo/rowmap.hpp"
 #include "treestereo/rowtrack.hpp"
 #include "treestereo/types.hpp"
 
@@ -121,6 +122,14 @@ GroundPlane ground_from_meta(const GstTreeStereoCanopyMeta *meta);
  * @mm is NULL or lacks it). */
 std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
                                         const GstTreeStereoMatchesMeta *mm, guint view_width);
+/* Adds one frame of @buf to a row map (treemetrics' map, spraycontrol's): the canopy meta's
+ * silhouette as the mask (all empty when it has none of the view's size: the view seen without
+ * canopy), the points meta's points with their pixels (@pm may be NULL), @ground (must be found)
+ * and the rig's position along the row (mm). lib's exceptions pass through. */
+void feed_row_map(RowMap &map, GstBuffer *buf, const StereoGeometry &geometry,
+                  const GstTreeStereoCanopyMeta *canopy, const GstTreeStereoPointsMeta *pm,
+                  const GroundPlane &ground, double position_mm);
+
 /* lib's tree record -> the message's (@out is cleared first). */
 void record_to_gst(const TreeRecord &r, GstTreeStereoTreeRecord *out);
 

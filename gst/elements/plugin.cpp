@@ -15,6 +15,7 @@ static gboolean plugin_init(GstPlugin *plugin)
   ret |= GST_ELEMENT_REGISTER(treemetrics, plugin);
   ret |= GST_ELEMENT_REGISTER(treeoverlay, plugin);
   ret |= GST_ELEMENT_REGISTER(exgsegment, plugin);
+  ret |= GST_ELEMENT_REGISTER(spraycontrol, plugin);
   return ret;
 }
 

@@ -506,14 +506,7 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
       rp.bin_mm = s.row_map_bin * 1000.0;
       a.row_map = std::make_unique<RowMap>(rp);
     }
-    const treestereo::gst::MappedSilhouette sil(&canopy->view);
-    cv::Mat mask = sil.get().mask;
-    if (mask.empty() || mask.size() != geometry.view_size)
-      mask = cv::Mat::zeros(geometry.view_size, CV_8U); // no canopy in view: all seen empty
-    const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
-    a.row_map->add_frame(mask,
-                         treestereo::gst::pixel_points_of(pm, mm, guint(geometry.view_size.width)),
-                         geometry, a.ground, a.position_mm);
+    treestereo::gst::feed_row_map(*a.row_map, buf, geometry, canopy, pm, a.ground, a.position_mm);
   }
   return out;
 }

@@ -1401,3 +1401,33 @@ gst_tree_stereo_canopy_message_parse (const GstStructure * s, GstTreeStereoCanop
       "segments", G_TYPE_UINT, &meta->n_segments,
       "canopy-points", G_TYPE_UINT, &meta->n_canopy_points, NULL);
 }
+
+GstStructure *
+gst_tree_stereo_section_message_structure (const GstTreeStereoSectionCommand * c)
+{
+  g_return_val_if_fail (c != NULL, NULL);
+  return gst_structure_new (GST_TREE_STEREO_MESSAGE_SECTION,
+      "section", G_TYPE_UINT, c->section,
+      "on", G_TYPE_BOOLEAN, c->on,
+      "rate", G_TYPE_DOUBLE, c->rate,
+      "at-ns", G_TYPE_INT64, c->at_ns,
+      "position-m", G_TYPE_DOUBLE, c->position_m,
+      "fallback", G_TYPE_BOOLEAN, c->fallback, NULL);
+}
+
+gboolean
+gst_tree_stereo_section_message_parse (const GstStructure * s,
+    GstTreeStereoSectionCommand * c)
+{
+  g_return_val_if_fail (s != NULL && c != NULL, FALSE);
+  memset (c, 0, sizeof (*c));
+  if (!gst_structure_has_name (s, GST_TREE_STEREO_MESSAGE_SECTION))
+    return FALSE;
+  return gst_structure_get (s,
+      "section", G_TYPE_UINT, &c->section,
+      "on", G_TYPE_BOOLEAN, &c->on,
+      "rate", G_TYPE_DOUBLE, &c->rate,
+      "at-ns", G_TYPE_INT64, &c->at_ns,
+      "position-m", G_TYPE_DOUBLE, &c->position_m,
+      "fallback", G_TYPE_BOOLEAN, &c->fallback, NULL);
+}

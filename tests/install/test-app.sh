@@ -12,3 +12,9 @@ cc -Wall -Wextra -Werror -o "$dest/treestereo-app" "$src/tests/app/treestereo-ap
   fail "the application did not compile"
 export GST_REGISTRY_1_0="$dest/registry.bin" GST_PLUGIN_PATH_1_0="$installed_libdir/gstreamer-1.0"
 LD_LIBRARY_PATH="$installed_libdir" timeout 150 "$dest/treestereo-app" 3 || fail "the application failed"
+# The valve timeline example (spraycontrol's section commands, docs/spraying.md), likewise.
+# shellcheck disable=SC2086
+cc -Wall -Wextra -Werror -o "$dest/valve-timeline" "$src/tests/app/valve-timeline.c" $flags ||
+  fail "the valve timeline example did not compile"
+LD_LIBRARY_PATH="$installed_libdir" timeout 150 "$dest/valve-timeline" 8 >/dev/null ||
+  fail "the valve timeline example failed"

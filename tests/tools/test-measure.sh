@@ -94,14 +94,15 @@ canopy_mode_is "$tmp/h.jsonl" row || fail "--canopy row"
 
 # 1c. along the row: a drive-by at 2 m/s; tree records (--trees) against the renderer's row
 # (treestereo-synth's truth.json of the same scene), the position since the start in the JSON,
-# the row map's CSV and PNG (--row-map)
+# the row map's CSV and PNG (--row-map), the nozzle-section commands (--sections)
 synth="$(dirname "$measure")/treestereo-synth"
 "$measure" --synthetic --speed 2 --frames 24 --size 640x480 --json "$tmp/d.jsonl" \
-  --trees "$tmp/d-trees.jsonl" --row-map "$tmp/d-map.csv" >"$tmp/d.out" 2>&1 || { cat "$tmp/d.out"; fail "drive-by run"; }
+  --trees "$tmp/d-trees.jsonl" --row-map "$tmp/d-map.csv" --sections "$tmp/d-sections.jsonl" \
+  >"$tmp/d.out" 2>&1 || { cat "$tmp/d.out"; fail "drive-by run"; }
 "$synth" --scene orchard --speed 2 --frames 24 --size 640x480 --format jpg -o "$tmp/d-truth" \
   >/dev/null 2>&1 || fail "treestereo-synth for the drive-by's truth"
 grep -q '^tree [0-9]* at ' "$tmp/d.out" || { cat "$tmp/d.out"; fail "no tree line in the summary"; }
-python3 - "$tmp/d.jsonl" "$tmp/d-trees.jsonl" "$tmp/d-truth/truth.json" "$tmp/d-map.csv" <<'PY' || fail "drive-by records"
+python3 - "$tmp/d.jsonl" "$tmp/d-trees.jsonl" "$tmp/d-truth/truth.json" "$tmp/d-map.csv" "$tmp/d-sections.jsonl" <<'PY' || fail "drive-by records"
 import csv, json, sys
 frames = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
 records = [json.loads(l) for l in open(sys.argv[2]) if l.strip()]
@@ -127,6 +128,31 @@ for r in complete:
 rows = list(csv.DictReader(open(sys.argv[4])))
 assert rows and list(rows[0].keys()) == ["position_m", "band", "present", "distance_m", "fill"], "row map CSV header"
 assert any(r["present"] == "1" for r in rows) and any(r["present"] == "0" for r in rows), "row map without canopy or without gaps"
+# section commands: DESIGN.md's fields; per section on and off alternate, in time order; each
+# opening is for canopy of a tree record (10 cm: two map bins)
+commands = [json.loads(l) for l in open(sys.argv[5]) if l.strip()]
+assert commands, "no section command"
+for c in commands:
+    assert set(c) >= {"section", "on", "rate", "at_ns", "position_m"}, f"section command {c}"
+    assert "fallback" not in c, f"a fail-safe command in an offline run: {c}"
+for k in sorted({c["section"] for c in commands}):
+    mine = [c for c in commands if c["section"] == k]
+    assert [c["on"] for c in mine] == [i % 2 == 0 for i in range(len(mine))], f"section {k}: {mine}"
+    assert all(a["at_ns"] < b["at_ns"] for a, b in zip(mine, mine[1:])), f"section {k} out of time order"
+    for c in mine:
+        if c["on"]:
+            assert any(r["start_m"] - 0.1 <= c["position_m"] <= r["end_m"] + 0.1 for r in records), f"section {k} opens at {c['position_m']} m, no tree there"
+# against the renderer's trees: section 1 (0.7-1.0 m, where the canopies are widest) opens and
+# closes within one frame's travel (2/7 m, plus the position's 3 % drift) of each tree's start and
+# end, for the trees whose end the rig passed (bins are final once behind the camera)
+s1 = [c for c in commands if c["section"] == 1]
+for t in row.values():
+    if t["end_m"] > pos - 0.3:
+        continue
+    for edge, on in ((t["start_m"], True), (t["end_m"], False)):
+        tol = 2.0 / 7.0 + 0.03 * abs(edge)
+        near = min((c for c in s1 if c["on"] == on), key=lambda c: abs(c["position_m"] - edge))
+        assert abs(near["position_m"] - edge) <= tol, f"section 1 {'on' if on else 'off'} at {near['position_m']} m, tree edge {edge:.3f} m"
 PY
 [ -s "$tmp/d-map.png" ] || fail "the row map's PNG was not written beside the CSV"
 

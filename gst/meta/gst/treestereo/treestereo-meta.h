@@ -764,6 +764,36 @@ GstStructure *gst_tree_stereo_tree_message_structure (const GstTreeStereoTreeRec
 gboolean gst_tree_stereo_tree_message_parse (const GstStructure *s,
     GstTreeStereoTreeRecord *record, GstTreeStereoTimes *times);
 
+/* spraycontrol, one message per valve command of a nozzle section (DESIGN.md's section command),
+ * named "treestereo-section". */
+#define GST_TREE_STEREO_MESSAGE_SECTION "treestereo-section"
+
+/**
+ * GstTreeStereoSectionCommand:
+ * @section: the nozzle section, 0 = the lowest
+ * @on: open (TRUE) or close the valve
+ * @rate: the spray rate (0..1; the on/off model: 1 or 0)
+ * @at_ns: the running time (ns) at which the valve must switch (the valve's latency already
+ *   taken off); may lie before the message when the command is late
+ * @position_m: world position along the row (m) of the canopy slice the command is for
+ * @fallback: the command is the fail-safe's (no data for hold-time), not the canopy's
+ */
+typedef struct {
+  guint section;
+  gboolean on;
+  gdouble rate;
+  gint64 at_ns;
+  gdouble position_m;
+  gboolean fallback;
+} GstTreeStereoSectionCommand;
+
+/* "treestereo-section": "section" (guint), "on" (gboolean), "rate" (gdouble), "at-ns"
+ * (gint64, running time), "position-m" (gdouble, m), "fallback" (gboolean). */
+GstStructure *gst_tree_stereo_section_message_structure (const GstTreeStereoSectionCommand *cmd);
+/* Parses into @cmd. Returns FALSE on a malformed structure or another message. */
+gboolean gst_tree_stereo_section_message_parse (const GstStructure *s,
+    GstTreeStereoSectionCommand *cmd);
+
 /* Enum <-> string names used in messages and properties. */
 const gchar *gst_tree_stereo_vegetation_index_to_string (GstTreeStereoVegetationIndex index);
 gboolean gst_tree_stereo_vegetation_index_from_string (const gchar *s,

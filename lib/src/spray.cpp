@@ -1,0 +1,326 @@
+// Nozzle sections from the row map (spray.hpp).
+#include "treestereo/spray.hpp"
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <cstdlib>
+#include <stdexcept>
+
+namespace treestereo {
+
+namespace {
+// Lengths are sums of bin widths: a run of exactly min_canopy_m must count as min_canopy_m.
+constexpr double kEps = 1e-9;
+} // namespace
+
+void validate(const SprayParams &p)
+{
+  if (p.n_sections < 1 || p.n_sections > 256)
+    throw std::runtime_error("spray parameter n_sections out of range: 1 to 256");
+  if (!std::isfinite(p.nozzle_offset_m) || p.nozzle_offset_m < 0 || p.nozzle_offset_m > 100)
+    throw std::runtime_error("spray parameter nozzle_offset_m out of range: 0 to 100 m");
+  if (p.valve_latency_ns < 0 || p.valve_latency_ns > 10000000000LL)
+    throw std::runtime_error("spray parameter valve_latency_ns out of range: 0 to 10 s");
+  if (!std::isfinite(p.min_gap_m) || p.min_gap_m < 0 || p.min_gap_m > 100)
+    throw std::runtime_error("spray parameter min_gap_m out of range: 0 to 100 m");
+  if (!std::isfinite(p.min_canopy_m) || p.min_canopy_m < 0 || p.min_canopy_m > 100)
+    throw std::runtime_error("spray parameter min_canopy_m out of range: 0 to 100 m");
+  if (!(p.rate_step > 0) || !(p.rate_step <= 1))
+    throw std::runtime_error("spray parameter rate_step out of range: above 0 to 1");
+  if (p.hold_time_ns <= 0)
+    throw std::runtime_error("spray parameter hold_time_ns must be above 0");
+  if (p.speed_window_ns <= 0)
+    throw std::runtime_error("spray parameter speed_window_ns must be above 0");
+}
+
+std::vector<SectionRange> parse_section_heights(const std::string &text)
+{
+  std::vector<SectionRange> out;
+  if (text.empty())
+    return out;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    std::size_t comma = text.find(',', start);
+    if (comma == std::string::npos)
+      comma = text.size();
+    const std::string item = text.substr(start, comma - start);
+    const std::string where = "section heights \"" + text + "\": item \"" + item + "\" ";
+    const std::size_t colon = item.find(':');
+    if (colon == std::string::npos)
+      throw std::runtime_error(where + "is not lo:hi (heights in m above the ground)");
+    const std::string a = item.substr(0, colon), b = item.substr(colon + 1);
+    char *end = nullptr;
+    SectionRange r;
+    r.lo_m = std::strtod(a.c_str(), &end);
+    if (a.empty() || *end != '\0' || !std::isfinite(r.lo_m))
+      throw std::runtime_error(where + "has no number before ':'");
+    r.hi_m = std::strtod(b.c_str(), &end);
+    if (b.empty() || *end != '\0' || !std::isfinite(r.hi_m))
+      throw std::runtime_error(where + "has no number after ':'");
+    if (r.lo_m < 0)
+      throw std::runtime_error(where + "starts below the ground (negative height)");
+    if (!(r.lo_m < r.hi_m))
+      throw std::runtime_error(where + "is empty: lo must be below hi");
+    out.push_back(r);
+    start = comma + 1;
+  }
+  return out;
+}
+
+std::vector<SliceSection> sections_of(const std::vector<RowMapCell> &cells,
+                                      const std::vector<double> &band_edges_mm,
+                                      const std::vector<SectionRange> &ranges)
+{
+  if (band_edges_mm.size() != cells.size() + 1)
+    throw std::runtime_error("spray: " + std::to_string(cells.size()) + " cells for " +
+                             std::to_string(band_edges_mm.size()) + " band edges");
+  std::vector<SliceSection> out;
+  if (ranges.empty()) {
+    for (const RowMapCell &c : cells) {
+      SliceSection s;
+      s.present = c.present;
+      s.fill = c.present ? c.fill : 0;
+      s.width_share = c.present ? 1 : 0;
+      out.push_back(s);
+    }
+    return out;
+  }
+  for (const SectionRange &r : ranges) {
+    double covered = 0, fill = 0;
+    for (std::size_t k = 0; k < cells.size(); ++k) {
+      const double lo = band_edges_mm[k] / 1000.0, hi = band_edges_mm[k + 1] / 1000.0;
+      const double o = std::min(r.hi_m, hi) - std::max(r.lo_m, lo);
+      if (o > 0 && cells[k].present) {
+        covered += o;
+        fill += cells[k].fill * o;
+      }
+    }
+    SliceSection s;
+    s.present = covered > 0;
+    s.fill = s.present ? fill / covered : 0;
+    s.width_share = std::min(1.0, covered / (r.hi_m - r.lo_m));
+    out.push_back(s);
+  }
+  return out;
+}
+
+std::vector<SpraySlice> take_final_slices(const RowMap &map, double position_mm, long &next_bin,
+                                          const std::vector<SectionRange> &ranges)
+{
+  std::vector<SpraySlice> out;
+  if (map.empty())
+    return out;
+  const double bin = map.params().bin_mm;
+  const int nb = map.n_bands();
+  for (long b = std::max(next_bin, map.first_bin()); b <= map.last_bin(); ++b) {
+    if ((double(b) + 0.5) * bin > position_mm)
+      break;
+    next_bin = b + 1;
+    std::vector<RowMapCell> cells(static_cast<std::size_t>(nb));
+    bool seen = false;
+    for (int k = 0; k < nb; ++k) {
+      cells[std::size_t(k)] = map.cell(b, k);
+      seen = seen || cells[std::size_t(k)].seen;
+    }
+    if (!seen)
+      continue; // no frame held the bin whole: a gap to the planner
+    SpraySlice s;
+    s.start_m = double(b) * bin / 1000.0;
+    s.end_m = double(b + 1) * bin / 1000.0;
+    s.sections = sections_of(cells, map.band_edges_mm(), ranges);
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+SprayPlanner::SprayPlanner(const SprayParams &p) : p_(p)
+{
+  validate(p_);
+  sections_.resize(std::size_t(p_.n_sections));
+  valve_.resize(std::size_t(p_.n_sections));
+}
+
+double SprayPlanner::rate_of(const SliceSection &s) const
+{
+  if (p_.rate_model == RateModel::OnOff)
+    return 1.0;
+  const double r = std::clamp(s.fill * s.width_share, 0.0, 1.0);
+  // Present canopy always gets some spray: at least one step.
+  return std::clamp(std::round(r / p_.rate_step) * p_.rate_step, p_.rate_step, 1.0);
+}
+
+void SprayPlanner::present(int k, double x_start, double x_end, double rate)
+{
+  Section &s = sections_[std::size_t(k)];
+  if (s.on) {
+    s.in_gap = false; // shorter than min_gap: absent() closes longer ones first
+    if (rate != s.rate) {
+      planned_.push_back({k, true, rate, x_start});
+      s.rate = rate;
+    }
+    return;
+  }
+  if (!s.cand) {
+    s.cand = true;
+    s.cand_start = x_start;
+    s.cand_rates.clear();
+    s.cand_rates.push_back({k, true, rate, x_start});
+  } else if (rate != s.cand_rates.back().rate) {
+    s.cand_rates.push_back({k, true, rate, x_start});
+  }
+  s.cand_end = x_end;
+  if (s.cand_end - s.cand_start >= p_.min_canopy_m - kEps) {
+    planned_.insert(planned_.end(), s.cand_rates.begin(), s.cand_rates.end());
+    s.on = true;
+    s.rate = s.cand_rates.back().rate;
+    s.cand = false;
+    s.cand_rates.clear();
+  }
+}
+
+void SprayPlanner::absent(int k, double x_start, double x_end)
+{
+  Section &s = sections_[std::size_t(k)];
+  if (s.on) {
+    if (!s.in_gap) {
+      s.in_gap = true;
+      s.gap_start = x_start;
+    }
+    if (x_end - s.gap_start >= p_.min_gap_m - kEps) {
+      planned_.push_back({k, false, 0.0, s.gap_start});
+      s.on = false;
+      s.rate = 0;
+      s.in_gap = false;
+    }
+  } else if (s.cand && x_end - s.cand_end >= p_.min_gap_m - kEps) {
+    s.cand = false; // the run ended shorter than min_canopy: not sprayed
+    s.cand_rates.clear();
+  }
+}
+
+double SprayPlanner::speed_m_s() const
+{
+  if (samples_.size() < 2)
+    return 0;
+  const Sample &last = samples_.back();
+  std::size_t i = samples_.size() - 2; // at least the previous sample
+  while (i > 0 && last.t - samples_[i - 1].t <= p_.speed_window_ns)
+    --i;
+  const Sample &old = samples_[i];
+  if (last.t <= old.t)
+    return 0;
+  return (last.x - old.x) / (double(last.t - old.t) * 1e-9);
+}
+
+std::int64_t SprayPlanner::time_at(double x) const
+{
+  const Sample &last = samples_.back();
+  const double v = speed_m_s();
+  return last.t + std::llround((x + p_.nozzle_offset_m - last.x) / v * 1e9) -
+         p_.valve_latency_ns;
+}
+
+std::vector<SectionCommand> SprayPlanner::due(std::int64_t horizon_ns, bool all)
+{
+  std::vector<SectionCommand> out;
+  if (planned_.empty() || samples_.empty())
+    return out;
+  std::stable_sort(planned_.begin(), planned_.end(),
+                   [](const Planned &a, const Planned &b) { return a.x < b.x; });
+  const bool timed = speed_m_s() > 0;
+  if (!timed && !all)
+    return out; // standing still: no slice comes nearer the nozzles
+  while (!planned_.empty()) {
+    const Planned &p = planned_.front();
+    const std::int64_t at = timed ? time_at(p.x) : samples_.back().t;
+    if (!all && at > horizon_ns)
+      break;
+    out.push_back({p.section, p.on, p.rate, at, p.x});
+    valve_[std::size_t(p.section)] = {p.on, p.rate};
+    planned_.pop_front();
+  }
+  return out;
+}
+
+std::vector<SectionCommand> SprayPlanner::update(std::int64_t running_ns, double position_m,
+                                                 const std::vector<SpraySlice> &slices)
+{
+  if (!std::isfinite(position_m))
+    throw std::runtime_error("spray: the rig's position must be finite");
+  for (const SpraySlice &sl : slices)
+    if (int(sl.sections.size()) != p_.n_sections)
+      throw std::runtime_error("spray: a slice with " + std::to_string(sl.sections.size()) +
+                               " sections, the planner has " + std::to_string(p_.n_sections));
+  if (fallback_) {
+    // Data again: control resumes from the state the fallback left the valves in.
+    fallback_ = false;
+    for (std::size_t k = 0; k < sections_.size(); ++k) {
+      Section fresh;
+      fresh.on = valve_[k].on;
+      fresh.rate = valve_[k].rate;
+      sections_[k] = fresh;
+    }
+    have_frontier_ = false;
+  }
+  // A frame not later than the last adds no speed sample (its slices still count).
+  if (samples_.empty() || running_ns > samples_.back().t) {
+    frame_ns_ = samples_.empty() ? 0 : running_ns - samples_.back().t;
+    samples_.push_back({running_ns, position_m});
+    while (samples_.size() > 2 && running_ns - samples_[1].t > p_.speed_window_ns)
+      samples_.pop_front();
+  }
+
+  for (const SpraySlice &sl : slices) {
+    if (have_frontier_ && sl.end_m <= frontier_ + kEps)
+      continue; // already planned
+    const double start = have_frontier_ ? std::max(sl.start_m, frontier_) : sl.start_m;
+    if (have_frontier_ && start > frontier_ + kEps)
+      for (int k = 0; k < p_.n_sections; ++k)
+        absent(k, frontier_, start); // bins no frame held: no canopy known there
+    for (int k = 0; k < p_.n_sections; ++k) {
+      const SliceSection &s = sl.sections[std::size_t(k)];
+      if (s.present)
+        present(k, start, sl.end_m, rate_of(s));
+      else
+        absent(k, start, sl.end_m);
+    }
+    frontier_ = sl.end_m;
+    have_frontier_ = true;
+  }
+  return due(running_ns + frame_ns_, false);
+}
+
+std::vector<SectionCommand> SprayPlanner::tick(std::int64_t running_ns)
+{
+  std::vector<SectionCommand> out;
+  if (fallback_ || samples_.empty() || running_ns - samples_.back().t < p_.hold_time_ns)
+    return out;
+  fallback_ = true;
+  planned_.clear();
+  for (std::size_t k = 0; k < sections_.size(); ++k) {
+    Section s;
+    if (p_.fallback == SprayFallback::Hold) {
+      s.on = valve_[k].on;
+      s.rate = valve_[k].rate;
+    } else {
+      s.on = p_.fallback == SprayFallback::On;
+      s.rate = s.on ? 1.0 : 0.0;
+      valve_[k] = {s.on, s.rate};
+      // Where the rig is believed to be now: the slice under the nozzles.
+      const double v = speed_m_s();
+      const double x = samples_.back().x + v * double(running_ns - samples_.back().t) * 1e-9 -
+                       p_.nozzle_offset_m;
+      out.push_back({int(k), s.on, s.rate, running_ns, x});
+    }
+    sections_[k] = s;
+  }
+  return out;
+}
+
+std::vector<SectionCommand> SprayPlanner::finish()
+{
+  return due(0, true);
+}
+
+} // namespace treestereo

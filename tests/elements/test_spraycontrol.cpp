@@ -1,0 +1,410 @@
+/* spraycontrol on pushed buffers with a test clock: a flat canopy wall 2 m in front of the camera,
+ * full height, at known stretches of the row, the rig's position in the metrics meta. The valve
+ * commands are checked against the timing model (docs/spraying.md):
+ *
+ *   at_ns = (x + nozzle-offset - position(0)) / speed - valve-latency   (position = position(0)
+ *   + speed * t)
+ *
+ * and the fail-safe is driven by cranking the test clock past hold-time. */
+#include <cmath>
+#include <cstring>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <gst/check/gstcheck.h>
+#include <gst/check/gstharness.h>
+#include <gst/check/gsttestclock.h>
+#include <gst/treestereo/treestereo-meta.h>
+
+namespace {
+
+/* The view: 20 mm per column and per row at 2 m (fx = fy = 100); the camera 1 m above the
+ * ground, so the rows span 0.42-1.6 m above it: the row map's four bands, 0.4-1.6 m. */
+const int kW = 100, kH = 60;
+const double kZ = 2000, kF = 100, kCamHeight = 1.0;
+/* Start position: column centres never fall on a 50 mm bin edge (the mask and the map agree). */
+const double kP0 = 0.005;
+const GstClockTime kFrame = 100 * GST_MSECOND;
+
+using Canopy = std::vector<std::pair<double, double>>; // [start, end) along the row (m)
+
+struct Harness {
+  GstHarness *h = nullptr;
+  GstBus *bus = nullptr;
+};
+
+Harness harness(const char *props)
+{
+  Harness r;
+  GstElement *e = gst_parse_bin_from_description(
+      (std::string("spraycontrol name=s ") + props).c_str(), FALSE, nullptr);
+  fail_unless(e != nullptr);
+  gst_object_ref_sink(e);
+  GstElement *s = gst_bin_get_by_name(GST_BIN(e), "s");
+  gst_object_unref(e);
+  r.bus = gst_bus_new();
+  gst_element_set_bus(s, r.bus);
+  r.h = gst_harness_new_with_element(s, "sink", "src");
+  gst_object_unref(s);
+  gst_harness_use_testclock(r.h);
+  gst_harness_set_src_caps_str(r.h, "video/x-raw,format=GRAY8,width=100,height=60,framerate=10/1");
+  return r;
+}
+
+void harness_free(Harness &r)
+{
+  gst_element_set_bus(r.h->element, nullptr);
+  gst_object_unref(r.bus);
+  gst_harness_teardown(r.h);
+}
+
+bool in_canopy(const Canopy &c, double x)
+{
+  for (const auto &iv : c)
+    if (x >= iv.first && x < iv.second)
+      return true;
+  return false;
+}
+
+/* A frame at @pts with the rig at @position_m (m) and the canopy where @canopy says. */
+GstBuffer *frame(GstClockTime pts, double position_m, const Canopy &canopy)
+{
+  GstBuffer *b = gst_buffer_new_allocate(nullptr, kW * kH, nullptr);
+  gst_buffer_memset(b, 0, 0, kW * kH);
+  GST_BUFFER_PTS(b) = pts;
+  GST_BUFFER_DURATION(b) = kFrame;
+  GstTreeStereoGeometryMeta *g = gst_buffer_add_tree_stereo_geometry_meta(b);
+  g->view_width = kW;
+  g->view_height = kH;
+  g->rectified = TRUE;
+  g->fx[0] = g->fx[1] = g->fy[0] = g->fy[1] = kF;
+  g->cx[0] = g->cx[1] = kW / 2.0;
+  g->cy[0] = g->cy[1] = kH / 2.0;
+  g->baseline_mm = 100;
+
+  GstTreeStereoMetrics m{};
+  m.position_m = position_m;
+  gst_buffer_add_tree_stereo_metrics_meta(b, &m, nullptr);
+
+  GstBuffer *mask = gst_buffer_new_allocate(nullptr, kW * kH, nullptr);
+  GstMapInfo map;
+  gst_buffer_map(mask, &map, GST_MAP_WRITE);
+  std::memset(map.data, 0, kW * kH);
+  std::vector<GstTreeStereoPoint> points;
+  for (int u = 0; u < kW; u++) {
+    const double X = (u - kW / 2.0) / kF * kZ;
+    if (!in_canopy(canopy, (X + position_m * 1000.0) / 1000.0))
+      continue;
+    for (int v = 0; v < kH; v++) {
+      map.data[v * kW + u] = 255;
+      if (v % 4 == 0) {
+        GstTreeStereoPoint p{};
+        p.x = float(X);
+        p.y = float((v - kH / 2.0) / kF * kZ);
+        p.z = float(kZ);
+        p.match_index = guint32(v * kW + u);
+        p.valid = TRUE;
+        points.push_back(p);
+      }
+    }
+  }
+  gst_buffer_unmap(mask, &map);
+  GstTreeStereoPointsMeta *pm =
+      gst_buffer_add_tree_stereo_points_meta(b, points.data(), guint(points.size()), nullptr);
+  pm->dense = TRUE;
+  GstTreeStereoCanopyMeta *c = gst_buffer_add_tree_stereo_canopy_meta(b, GST_TREE_STEREO_CANOPY_ROW);
+  c->ground_found = TRUE;
+  c->ground_normal[0] = 0;
+  c->ground_normal[1] = -1; // y points down in the camera frame
+  c->ground_normal[2] = 0;
+  c->ground_d_m = kCamHeight;
+  c->view.present = !points.empty();
+  if (c->view.present) {
+    c->view.mask = mask;
+    c->view.mask_width = kW;
+    c->view.mask_height = kH;
+    c->view.mask_stride = kW;
+  } else {
+    gst_buffer_unref(mask);
+  }
+  return b;
+}
+
+/* The section commands (and the count of warnings) on the bus so far. */
+std::vector<GstTreeStereoSectionCommand> commands(GstBus *bus, int *warnings = nullptr,
+                                                  std::string *warning_text = nullptr)
+{
+  std::vector<GstTreeStereoSectionCommand> out;
+  while (GstMessage *msg = gst_bus_pop(bus)) {
+    if (GST_MESSAGE_TYPE(msg) == GST_MESSAGE_ELEMENT) {
+      GstTreeStereoSectionCommand c;
+      if (gst_tree_stereo_section_message_parse(gst_message_get_structure(msg), &c))
+        out.push_back(c);
+    } else if (GST_MESSAGE_TYPE(msg) == GST_MESSAGE_WARNING) {
+      if (warnings)
+        (*warnings)++;
+      GError *err = nullptr;
+      gst_message_parse_warning(msg, &err, nullptr);
+      if (warning_text && err)
+        *warning_text = err->message;
+      g_clear_error(&err);
+    }
+    gst_message_unref(msg);
+  }
+  return out;
+}
+
+/* Drives the rig at @speed (m/s) past @canopy for @seconds, then EOS; the commands of
+ * section 0 (all four sections see the same full-height wall: checked equal). */
+std::vector<GstTreeStereoSectionCommand> drive(const char *props, const Canopy &canopy,
+                                               double speed, double seconds)
+{
+  Harness r = harness(props);
+  const int n = int(std::lround(seconds / 0.1));
+  for (int i = 0; i <= n; i++) {
+    const GstClockTime t = GstClockTime(i) * kFrame;
+    fail_unless_equals_int(gst_harness_push(r.h, frame(t, kP0 + speed * 0.1 * i, canopy)),
+                           GST_FLOW_OK);
+    gst_buffer_unref(gst_harness_pull(r.h));
+  }
+  fail_unless(gst_harness_push_event(r.h, gst_event_new_eos()));
+  std::vector<GstTreeStereoSectionCommand> all = commands(r.bus), s0;
+  harness_free(r);
+  for (guint k = 0; k < 4; k++) {
+    std::vector<GstTreeStereoSectionCommand> sk;
+    for (const auto &c : all)
+      if (c.section == k)
+        sk.push_back(c);
+    if (k == 0) {
+      s0 = sk;
+      continue;
+    }
+    fail_unless_equals_int(int(sk.size()), int(s0.size()));
+    for (std::size_t i = 0; i < sk.size(); i++) {
+      fail_unless_equals_int(sk[i].on, s0[i].on);
+      fail_unless_equals_int64(sk[i].at_ns, s0[i].at_ns);
+    }
+  }
+  return s0;
+}
+
+gint64 expected_at(double x, double offset, double speed, gint64 latency_ns)
+{
+  return gint64(std::llround((x + offset - kP0) / speed * 1e9)) - latency_ns;
+}
+
+} // namespace
+
+GST_START_TEST(test_timing_two_speeds_two_latencies)
+{
+  const Canopy canopy = {{2.0, 3.0}};
+  for (double speed : {0.5, 1.5})
+    for (guint latency : {160u, 300u}) {
+      const std::string props =
+          "nozzle-offset=1.2 valve-latency=" + std::to_string(latency);
+      const auto c = drive(props.c_str(), canopy, speed, (3.0 + 1.2 + 1.0) / speed);
+      fail_unless_equals_int(int(c.size()), 2);
+      fail_unless(c[0].on && !c[1].on);
+      fail_unless(!c[0].fallback && !c[1].fallback);
+      fail_unless_equals_float(c[0].rate, 1.0);
+      fail_unless(std::abs(c[0].position_m - 2.0) < 1e-9, "on at %f", c[0].position_m);
+      fail_unless(std::abs(c[1].position_m - 3.0) < 1e-9, "off at %f", c[1].position_m);
+      const gint64 lat = gint64(latency) * GST_MSECOND;
+      fail_unless(std::llabs(c[0].at_ns - expected_at(2.0, 1.2, speed, lat)) <= 2,
+                  "speed %f latency %u: on at %" G_GINT64_FORMAT " expected %" G_GINT64_FORMAT,
+                  speed, latency, c[0].at_ns, expected_at(2.0, 1.2, speed, lat));
+      fail_unless(std::llabs(c[1].at_ns - expected_at(3.0, 1.2, speed, lat)) <= 2,
+                  "speed %f latency %u: off at %" G_GINT64_FORMAT " expected %" G_GINT64_FORMAT,
+                  speed, latency, c[1].at_ns, expected_at(3.0, 1.2, speed, lat));
+    }
+}
+GST_END_TEST;
+
+GST_START_TEST(test_min_gap_and_min_canopy)
+{
+  // A 5 cm gap stays sprayed (min-gap 7.5 cm), a 10 cm gap closes the valve, a 5 cm twig of
+  // canopy is not sprayed (min-canopy 10 cm).
+  const Canopy canopy = {{2.0, 2.5}, {2.55, 3.0}, {3.1, 3.5}, {4.0, 4.05}};
+  const auto c = drive("", canopy, 1.0, 7.0);
+  fail_unless_equals_int(int(c.size()), 4);
+  fail_unless(c[0].on && std::abs(c[0].position_m - 2.0) < 1e-9);
+  fail_unless(!c[1].on && std::abs(c[1].position_m - 3.0) < 1e-9, "off at %f", c[1].position_m);
+  fail_unless(c[2].on && std::abs(c[2].position_m - 3.1) < 1e-9);
+  fail_unless(!c[3].on && std::abs(c[3].position_m - 3.5) < 1e-9);
+  // The gap's closed time is its travel time: 0.1 m at 1 m/s.
+  fail_unless(std::llabs(c[2].at_ns - c[1].at_ns - gint64(100 * GST_MSECOND)) <= 2);
+  // With min-canopy 0 the twig is sprayed too.
+  fail_unless_equals_int(int(drive("min-canopy=0", canopy, 1.0, 7.0).size()), 6);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_speed_change_halfway)
+{
+  // 1 m/s for 2 s, then 2 m/s. The canopy at 4.0-5.0 m reaches the nozzles (1.5 m behind) at
+  // position 5.5 m and 6.5 m: 3.75 s and 4.25 s (the start offset kP0 taken off).
+  Harness r = harness("");
+  const Canopy canopy = {{4.0, 5.0}};
+  double p = kP0;
+  for (int i = 0; i <= 60; i++) {
+    if (i > 0)
+      p += (i <= 20 ? 1.0 : 2.0) * 0.1;
+    fail_unless_equals_int(gst_harness_push(r.h, frame(GstClockTime(i) * kFrame, p, canopy)),
+                           GST_FLOW_OK);
+    gst_buffer_unref(gst_harness_pull(r.h));
+  }
+  std::vector<GstTreeStereoSectionCommand> c;
+  for (const auto &x : commands(r.bus))
+    if (x.section == 0)
+      c.push_back(x);
+  harness_free(r);
+  fail_unless_equals_int(int(c.size()), 2);
+  const gint64 on = gint64(std::llround((3.75 - kP0 / 2.0) * 1e9)) - 160 * GST_MSECOND;
+  const gint64 off = gint64(std::llround((4.25 - kP0 / 2.0) * 1e9)) - 160 * GST_MSECOND;
+  fail_unless(std::llabs(c[0].at_ns - on) <= 2, "on at %" G_GINT64_FORMAT, c[0].at_ns);
+  fail_unless(std::llabs(c[1].at_ns - off) <= 2, "off at %" G_GINT64_FORMAT, c[1].at_ns);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_fail_safe_after_hold_time)
+{
+  for (const char *fallback : {"on", "off"}) {
+    Harness r = harness((std::string("hold-time=500 fallback=") + fallback).c_str());
+    const Canopy canopy = {{0.5, 5.0}};
+    for (int i = 0; i <= 10; i++) {
+      fail_unless_equals_int(
+          gst_harness_push(r.h, frame(GstClockTime(i) * kFrame, kP0 + 0.1 * i, canopy)),
+          GST_FLOW_OK);
+      gst_buffer_unref(gst_harness_pull(r.h));
+    }
+    int warnings = 0;
+    std::string text;
+    fail_unless(commands(r.bus, &warnings).empty()); // the canopy is still ahead of the nozzles
+    // Frames stop at 1.0 s: the callback due hold-time after the last arrival (the test clock
+    // at 0) sets the fallback.
+    fail_unless(gst_harness_crank_single_clock_wait(r.h));
+    fail_unless_equals_uint64(gst_clock_get_time(GST_ELEMENT_CLOCK(r.h->element)),
+                              500 * GST_MSECOND);
+    const auto c = commands(r.bus, &warnings, &text);
+    fail_unless_equals_int(warnings, 1);
+    fail_unless(text.find("hold-time") != std::string::npos, "%s", text.c_str());
+    fail_unless(text.find(fallback) != std::string::npos, "%s", text.c_str());
+    fail_unless_equals_int(int(c.size()), 4);
+    for (guint k = 0; k < 4; k++) {
+      fail_unless_equals_int(c[k].section, k);
+      fail_unless_equals_int(c[k].on, std::string(fallback) == "on");
+      fail_unless(c[k].fallback);
+      fail_unless_equals_int64(c[k].at_ns, gint64(1500 * GST_MSECOND));
+    }
+    // Frames again: control resumes (the canopy comes under the nozzles).
+    for (int i = 20; i <= 80; i++) {
+      fail_unless_equals_int(
+          gst_harness_push(r.h, frame(GstClockTime(i) * kFrame, kP0 + 0.1 * i, canopy)),
+          GST_FLOW_OK);
+      gst_buffer_unref(gst_harness_pull(r.h));
+    }
+    bool canopy_command = false;
+    for (const auto &x : commands(r.bus))
+      canopy_command = canopy_command || !x.fallback;
+    fail_unless(canopy_command, "no command after frames resumed (fallback %s)", fallback);
+    harness_free(r);
+  }
+}
+GST_END_TEST;
+
+GST_START_TEST(test_fail_safe_on_a_gap_in_the_running_times)
+{
+  // Frames up to 1.0 s, the next at 1.6 s (a recording with frames missing): the fallback is
+  // posted when that frame comes, before its own commands.
+  Harness r = harness("hold-time=500");
+  const Canopy canopy = {{0.5, 5.0}};
+  for (int i = 0; i <= 10; i++) {
+    fail_unless_equals_int(
+        gst_harness_push(r.h, frame(GstClockTime(i) * kFrame, kP0 + 0.1 * i, canopy)),
+        GST_FLOW_OK);
+    gst_buffer_unref(gst_harness_pull(r.h));
+  }
+  int warnings = 0;
+  fail_unless(commands(r.bus, &warnings).empty());
+  fail_unless_equals_int(
+      gst_harness_push(r.h, frame(16 * kFrame, kP0 + 1.6, canopy)), GST_FLOW_OK);
+  gst_buffer_unref(gst_harness_pull(r.h));
+  const auto c = commands(r.bus, &warnings);
+  fail_unless_equals_int(warnings, 1);
+  fail_unless(c.size() >= 4);
+  for (guint k = 0; k < 4; k++) {
+    fail_unless(c[k].fallback && c[k].on);
+    fail_unless_equals_int64(c[k].at_ns, gint64(1600 * GST_MSECOND));
+  }
+  harness_free(r);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_bad_section_heights_is_a_named_error)
+{
+  GstElement *e = gst_element_factory_make("spraycontrol", nullptr);
+  fail_unless(e != nullptr);
+  GstBus *bus = gst_bus_new();
+  gst_element_set_bus(e, bus);
+  g_object_set(e, "section-heights", "0.4:0.7,0.7-1.0", nullptr);
+  fail_unless_equals_int(gst_element_set_state(e, GST_STATE_PLAYING), GST_STATE_CHANGE_FAILURE);
+  GstMessage *msg = gst_bus_pop_filtered(bus, GST_MESSAGE_ERROR);
+  fail_unless(msg != nullptr);
+  GError *err = nullptr;
+  gst_message_parse_error(msg, &err, nullptr);
+  fail_unless(strstr(err->message, "section-heights") != nullptr, "%s", err->message);
+  fail_unless(strstr(err->message, "0.7-1.0") != nullptr, "%s", err->message);
+  g_error_free(err);
+  gst_message_unref(msg);
+  gst_element_set_state(e, GST_STATE_NULL);
+  gst_element_set_bus(e, nullptr);
+  gst_object_unref(bus);
+  gst_object_unref(e);
+
+  // A section count that matches neither the bands nor the ranges: an error at the first frame.
+  Harness r = harness("sections=3");
+  fail_unless_equals_int(gst_harness_push(r.h, frame(0, kP0, {{0.0, 1.0}})), GST_FLOW_ERROR);
+  msg = gst_bus_pop_filtered(r.bus, GST_MESSAGE_ERROR);
+  fail_unless(msg != nullptr);
+  gst_message_parse_error(msg, &err, nullptr);
+  fail_unless(strstr(err->message, "sections=3") != nullptr, "%s", err->message);
+  g_error_free(err);
+  gst_message_unref(msg);
+  harness_free(r);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_section_message_round_trip)
+{
+  GstTreeStereoSectionCommand c{2, TRUE, 0.4, 1234567890123, 3.25, FALSE}, back;
+  GstStructure *s = gst_tree_stereo_section_message_structure(&c);
+  fail_unless(gst_structure_has_name(s, "treestereo-section"));
+  fail_unless(gst_tree_stereo_section_message_parse(s, &back));
+  fail_unless_equals_int(back.section, 2);
+  fail_unless(back.on && !back.fallback);
+  fail_unless_equals_float(back.rate, 0.4);
+  fail_unless_equals_int64(back.at_ns, 1234567890123);
+  fail_unless_equals_float(back.position_m, 3.25);
+  gst_structure_remove_field(s, "at-ns");
+  fail_if(gst_tree_stereo_section_message_parse(s, &back));
+  gst_structure_free(s);
+}
+GST_END_TEST;
+
+static Suite *spraycontrol_suite(void)
+{
+  Suite *s = suite_create("spraycontrol");
+  TCase *tc = tcase_create("general");
+  tcase_set_timeout(tc, 300);
+  suite_add_tcase(s, tc);
+  tcase_add_test(tc, test_timing_two_speeds_two_latencies);
+  tcase_add_test(tc, test_min_gap_and_min_canopy);
+  tcase_add_test(tc, test_speed_change_halfway);
+  tcase_add_test(tc, test_fail_safe_after_hold_time);
+  tcase_add_test(tc, test_fail_safe_on_a_gap_in_the_running_times);
+  tcase_add_test(tc, test_bad_section_heights_is_a_named_error);
+  tcase_add_test(tc, test_section_message_round_trip);
+  return s;
+}
+
+GST_CHECK_MAIN(spraycontrol)
