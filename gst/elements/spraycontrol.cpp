@@ -22,8 +22,9 @@
  * ## Example launch line
  * |[
  * gst-launch-1.0 stereorectify name=r calibration=rig.yml ! exgsegment ! siftmatch ! \
- *   stereodepth canopy-mode=row ! treemetrics ! spraycontrol nozzle-offset=1.2 ! fakesink \
- *   treetestsrc view=left ! r.left   treetestsrc view=right ! r.right
+ *   stereodepth ! treemetrics ! spraycontrol nozzle-offset=1.2 ! fakesink \
+ *   treetestsrc scene=orchard speed=2 view=left ! r.left \
+ *   treetestsrc scene=orchard speed=2 view=right ! r.right
  * ]|
  */
 #ifdef HAVE_CONFIG_H
