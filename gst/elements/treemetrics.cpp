@@ -200,7 +200,14 @@ struct Settings {
 /* Along the row: the travel's previous frame, the position, the tree tracker and the row map.
  * Reset when a new stream starts. */
 struct Along {
-  cv::Mat prev_left, prev_right; // grey copies of the previous frame's rectified views
+  // The stereo travel: grey copies of the key frame's and the previous frame's rectified views.
+  std::unique_ptr<Odometer> odometer;
+  bool has_views = false; // the odometer holds a previous frame
+  void reset_views()
+  {
+    odometer.reset(); // made again for the next frame's view size
+    has_views = false;
+  }
   bool has_prev_pts = false;
   GstClockTime prev_pts = GST_CLOCK_TIME_NONE;
   double position_mm = 0;
@@ -363,8 +370,7 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
   if (s.speed > 0) {
     // The application's speed (wheel odometry, GNSS) wins; the stereo views kept so far would
     // be stale when it is set back to 0.
-    a.prev_left.release();
-    a.prev_right.release();
+    a.reset_views();
     if (!had_pts)
       return GST_TREE_STEREO_TRAVEL_NONE; // the first frame: no time has passed
     const double dt_s = double(GST_CLOCK_DIFF(prev_pts, pts)) / double(GST_SECOND);
@@ -372,8 +378,7 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
     return GST_TREE_STEREO_TRAVEL_SPEED;
   }
   if (!s.travel) {
-    a.prev_left.release();
-    a.prev_right.release();
+    a.reset_views();
     return GST_TREE_STEREO_TRAVEL_NONE;
   }
   if (!st->info_set || treestereo::gst::n_views_of(&st->info) != 2) {
@@ -391,8 +396,7 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
     // A buffer without the pixels its caps promise (metas alone, as a test or a replay of the
     // metas hands on): nothing to track. The measurements need no pixels, so this stops
     // nothing; travel-source "none" says it in every message.
-    a.prev_left.release();
-    a.prev_right.release();
+    a.reset_views();
     if (!st->warned_travel) {
       st->warned_travel = true;
       GST_INFO_OBJECT(self, "no travel: buffer %" GST_PTR_FORMAT " is not a whole video frame",
@@ -411,33 +415,41 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
     right = right.clone();
   }
   GstTreeStereoTravelSource source = GST_TREE_STEREO_TRAVEL_NONE;
-  if (!a.prev_left.empty() && a.prev_left.size() == left.size() && pm) {
-    const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
-    const std::vector<PixelPoint> points =
-        treestereo::gst::pixel_points_of(pm, mm, guint(geometry.view_size.width));
-    const auto t0 = std::chrono::steady_clock::now();
-    TravelParams tp;
+  if (!a.odometer) {
+    OdometerParams op;
     // Views up to 800 px wide are tracked at full size: at half size the tracks of 640x480
     // views read the travel ~5 % short on the orchard (the canopy's points alone), for the
     // same cost as half size at 1296x972.
     if (left.cols <= 800)
-      tp.scale = 1.0;
-    const Motion m = estimate_motion(a.prev_left, a.prev_right, left, right, points, geometry, tp,
-                                     a.ground);
+      op.travel.scale = 1.0;
+    a.odometer = std::make_unique<Odometer>(op);
+  }
+  // No points (no points meta): nothing to measure from, but the views serve the next frame.
+  std::vector<PixelPoint> points;
+  if (pm)
+    points = treestereo::gst::pixel_points_of(pm, gst_buffer_get_tree_stereo_matches_meta(buf),
+                                              guint(geometry.view_size.width));
+  const bool had_views = a.has_views;
+  const auto t0 = std::chrono::steady_clock::now();
+  const OdometryStep step = a.odometer->add(left, right, points, geometry, a.ground);
+  a.has_views = true;
+  if (had_views) {
+    const Motion &m = step.motion;
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     GST_DEBUG_OBJECT(self,
-                     "travel %s: %.1f mm (%zu points, %zu tracked, %zu inliers, %.2f px) in "
-                     "%.1f ms",
-                     m.found ? "found" : "not found", m.travel_mm, m.points, m.tracked, m.inliers,
-                     m.rms_px, ms);
+                     "travel %s: %.1f mm (from the %s frame: %zu points, %zu tracked, %zu "
+                     "inliers, %.2f px) in %.1f ms",
+                     step.found ? "found" : "not found", step.travel_mm,
+                     step.from_key ? "key" : "previous", m.points, m.tracked, m.inliers, m.rms_px,
+                     ms);
     const double dt_s =
         had_pts ? double(GST_CLOCK_DIFF(prev_pts, pts)) / double(GST_SECOND) : 0.0;
-    if (m.found && std::isfinite(m.travel_mm)) {
-      travel_mm = m.travel_mm;
+    if (step.found) {
+      travel_mm = step.travel_mm;
       source = GST_TREE_STEREO_TRAVEL_STEREO;
       if (dt_s > 0) {
-        const double v = m.travel_mm / dt_s;
+        const double v = step.travel_mm / dt_s;
         a.speed_mm_s = a.has_speed ? 0.5 * (a.speed_mm_s + v) : v;
         a.has_speed = true;
       }
@@ -452,8 +464,6 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
       a.has_speed = false;
     }
   }
-  a.prev_left = left;
-  a.prev_right = right;
   return source;
 }
 
@@ -648,8 +658,7 @@ static gboolean gst_tree_metrics_set_caps(GstBaseTransform *trans, GstCaps *inca
   }
   // Other views (size, format, layout): the previous frame cannot be compared with the next.
   if (!st->info_set || !gst_video_info_is_equal(&info, &st->info)) {
-    st->along.prev_left.release();
-    st->along.prev_right.release();
+    st->along.reset_views();
   }
   st->info = info;
   st->info_set = true;
@@ -665,8 +674,7 @@ static gboolean gst_tree_metrics_sink_event(GstBaseTransform *trans, GstEvent *e
     // A seek: the previous frames are history. The trees in view are closed (their frames no
     // longer follow); the position keeps counting from where it was.
     st->smoother.reset();
-    st->along.prev_left.release();
-    st->along.prev_right.release();
+    st->along.reset_views();
     st->along.has_prev_pts = false;
     finish_trees(self);
     st->along.tracker.reset();

@@ -130,6 +130,84 @@ std::vector<cv::Vec2i> occupied_runs(const std::vector<double> &hist, double min
   return runs;
 }
 
+// Cuts runs of bins (along the row) where the top line dips between two crowns (CanopyParams::
+// valley_share). `top`: per bin, the height of its highest point (-inf: none); `heights`: the
+// heights of the points `zone`, `bin_of` their bin. The top line is first closed over one bin on
+// each side (a bin between two points of a crown's top that holds only lower leaves is no
+// notch). A cut leaves the valley's bin out of both runs: the cut falls on its centre.
+template <class BinOf>
+std::vector<cv::Vec2i> split_at_valleys(const std::vector<cv::Vec2i> &runs,
+                                        const std::vector<double> &top,
+                                        const std::vector<double> &heights,
+                                        const std::vector<int> &zone, BinOf bin_of, double bin,
+                                        const CanopyParams &p)
+{
+  const double ninf = -std::numeric_limits<double>::infinity();
+  const int nb = int(top.size());
+  std::vector<double> line(top.size(), ninf);
+  for (int b = 0; b < nb; ++b)
+    for (int d = -1; d <= 1; ++d)
+      if (b + d >= 0 && b + d < nb)
+        line[std::size_t(b)] = std::max(line[std::size_t(b)], top[std::size_t(b + d)]);
+  // The lowest canopy under each run: the 5th percentile of its points' heights.
+  std::vector<std::vector<double>> run_heights(runs.size());
+  for (std::size_t k = 0; k < zone.size(); ++k) {
+    const int b = bin_of(zone[k]);
+    for (std::size_t r = 0; r < runs.size(); ++r)
+      if (b >= runs[r][0] && b <= runs[r][1])
+        run_heights[r].push_back(heights[k]);
+  }
+  const int min_bins = std::max(1, int(std::ceil(p.min_crown_mm / bin)));
+  std::vector<cv::Vec2i> out;
+  for (std::size_t r = 0; r < runs.size(); ++r) {
+    auto &h = run_heights[r];
+    if (h.empty()) {
+      out.push_back(runs[r]);
+      continue;
+    }
+    const auto q = h.begin() + std::ptrdiff_t(0.05 * double(h.size() - 1));
+    std::nth_element(h.begin(), q, h.end());
+    const double base = *q;
+    // Split recursively: the deepest qualifying valley first.
+    std::vector<cv::Vec2i> todo{runs[r]};
+    while (!todo.empty()) {
+      const cv::Vec2i run = todo.back();
+      todo.pop_back();
+      const int s = run[0], e = run[1];
+      int best = -1;
+      double best_share = p.valley_share;
+      if (e - s + 1 >= 2 * min_bins + 1) {
+        // Highest top line left of each bin and right of it.
+        const int n = e - s + 1;
+        std::vector<double> left(std::size_t(n), ninf), right(std::size_t(n), ninf);
+        for (int i = 1; i < n; ++i)
+          left[std::size_t(i)] = std::max(left[std::size_t(i - 1)], line[std::size_t(s + i - 1)]);
+        for (int i = n - 2; i >= 0; --i)
+          right[std::size_t(i)] = std::max(right[std::size_t(i + 1)], line[std::size_t(s + i + 1)]);
+        for (int i = min_bins; i < n - min_bins; ++i) {
+          const double v = line[std::size_t(s + i)];
+          const double lower = std::min(left[std::size_t(i)], right[std::size_t(i)]);
+          if (v == ninf || lower == ninf || lower - base <= 0)
+            continue;
+          const double share = (lower - v) / (lower - base);
+          if (share >= best_share) {
+            best_share = share;
+            best = s + i;
+          }
+        }
+      }
+      if (best < 0) {
+        out.push_back(run);
+        continue;
+      }
+      todo.emplace_back(best + 1, e);
+      todo.emplace_back(s, best - 1);
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const cv::Vec2i &a, const cv::Vec2i &b) { return a[0] < b[0]; });
+  return out;
+}
+
 // The ground plane by RANSAC over the points (deterministic), then least squares on the inliers.
 // Nothing may lie under the ground and the camera stands above it: a candidate plane with more
 // than 2 % of the points well below it, or above the camera (a slice through a canopy), is
@@ -264,6 +342,8 @@ void validate(const CanopyParams &p)
   require(p.layer_gap_mm >= p.layer_bin_mm, "layer_gap_mm", "at least layer_bin_mm");
   require(p.max_row_depth_mm >= p.layer_bin_mm, "max_row_depth_mm", "at least layer_bin_mm");
   require(p.min_gap_mm >= 10, "min_gap_mm", "at least 10 mm");
+  require(p.valley_share >= 0 && p.valley_share < 1, "valley_share", "0 (off) to below 1");
+  require(p.min_crown_mm >= 0 && p.min_crown_mm <= 10000, "min_crown_mm", "0 to 10000 mm");
   require(p.sample_spacing_px >= 0, "sample_spacing_px", ">= 0");
   require(p.seam_half_window >= 0 && p.seam_half_window <= 15, "seam_half_window", "0 to 15 px");
 }
@@ -421,8 +501,22 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     std::vector<double> occ(hist.size(), 0.0);
     for (std::size_t b = 0; b < hist.size(); ++b)
       occ[b] = count[b] >= 2 ? hist[b] : 0.0;
-    const auto runs = occupied_runs(occ, 0.001 * total,
-                                    std::max(1, int(std::ceil(p.min_gap_mm / bin))));
+    auto runs = occupied_runs(occ, 0.001 * total,
+                              std::max(1, int(std::ceil(p.min_gap_mm / bin))));
+    if (p.mode == CanopyMode::Tree && p.valley_share > 0) {
+      // The top line of each bin: the height of its highest point (above the ground when it is
+      // known, else up in the camera frame).
+      std::vector<double> top(hist.size(), -std::numeric_limits<double>::infinity());
+      std::vector<double> heights(zone.size());
+      for (std::size_t k = 0; k < zone.size(); ++k) {
+        const cv::Point3d X = P(zone[k]);
+        heights[k] = r.ground.found ? r.ground.height_of(X) : -X.y;
+        double &t = top[std::size_t((X.x - xmin) / bin)];
+        t = std::max(t, heights[k]);
+      }
+      runs = split_at_valleys(runs, top, heights, zone,
+                              [&](int i) { return int((P(i).x - xmin) / bin); }, bin, p);
+    }
     r.n_segments = int(runs.size());
     // Points in no run (stray bins) go to the nearest run.
     auto run_of = [&](double x) {

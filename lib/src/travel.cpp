@@ -809,4 +809,82 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
   return out;
 }
 
+void validate(const OdometerParams &p)
+{
+  validate(p.travel);
+  require(std::isfinite(p.key_span_mm) && p.key_span_mm >= 0 &&
+              p.key_span_mm <= p.travel.max_travel_mm,
+          "odometer", "key_span_mm", "0 to travel.max_travel_mm");
+}
+
+Odometer::Odometer(const OdometerParams &params) : params_(params)
+{
+  validate(params_);
+}
+
+void Odometer::reset()
+{
+  for (cv::Mat &m : key_)
+    m.release();
+  for (cv::Mat &m : prev_)
+    m.release();
+  since_key_mm_ = 0;
+  last_step_mm_ = 0;
+  key_is_prev_ = true;
+}
+
+OdometryStep Odometer::add(const cv::Mat &left, const cv::Mat &right,
+                           const std::vector<PixelPoint> &points, const StereoGeometry &geometry,
+                           const GroundPlane &ground)
+{
+  OdometryStep out;
+  const bool usable = !prev_[0].empty() && prev_[0].size() == left.size() &&
+                      prev_[0].type() == left.type() && right.size() == left.size() &&
+                      right.type() == left.type();
+  if (usable) {
+    // From the key frame while this frame is likely within the span of it; a key frame whose
+    // tracks fail (a frame of sky, a turn) leaves the previous frame to try.
+    if (!key_is_prev_ &&
+        std::abs(since_key_mm_ + last_step_mm_) <= params_.key_span_mm) {
+      const Motion m =
+          estimate_motion(key_[0], key_[1], left, right, points, geometry, params_.travel, ground);
+      if (m.found && std::isfinite(m.travel_mm)) {
+        out.found = out.from_key = true;
+        out.travel_mm = m.travel_mm - since_key_mm_;
+        out.motion = m;
+        since_key_mm_ = m.travel_mm;
+      }
+    }
+    if (!out.found) {
+      const Motion m = estimate_motion(prev_[0], prev_[1], left, right, points, geometry,
+                                       params_.travel, ground);
+      if (m.found && std::isfinite(m.travel_mm)) {
+        out.found = true;
+        out.travel_mm = m.travel_mm;
+        out.motion = m;
+        // The previous frame is the key frame from now on.
+        key_[0] = prev_[0];
+        key_[1] = prev_[1];
+        key_is_prev_ = false;
+        since_key_mm_ = m.travel_mm;
+      }
+    }
+  }
+  prev_[0] = left;
+  prev_[1] = right;
+  if (out.found)
+    last_step_mm_ = out.travel_mm;
+  // A lost frame, or a next frame likely beyond the span: this frame is the next key.
+  if (!out.found || params_.key_span_mm <= 0 ||
+      std::abs(since_key_mm_ + last_step_mm_) > params_.key_span_mm) {
+    key_[0] = left;
+    key_[1] = right;
+    key_is_prev_ = true;
+    since_key_mm_ = 0;
+  }
+  if (!out.found)
+    last_step_mm_ = 0;
+  return out;
+}
+
 } // namespace treestereo

@@ -346,6 +346,62 @@ TEST(Canopy, TwoCanopiesThirtyCentimetresApart)
   }
 }
 
+// Two round crowns grown 40 mm into each other: no gap along the row, but a notch in their top
+// line where they meet. In mode Tree they are two trees, cut at the notch; one crown of two
+// lobes (260 mm into each other) has a shallow notch and stays one.
+TEST(Canopy, TouchingCrownsAreCutWhereTheirTopLineDips)
+{
+  Scene s;
+  s.spheres.push_back({cv::Vec3d(-150, 0, 2200), 330});             // in front: x -480..180
+  s.spheres.push_back({cv::Vec3d(-150 + 660 - 40, 0, 2200), 330});  // x 140..800
+  s.wall_z = 5500;
+  const Rendered r = render(s);
+  const auto pts = grid_points(r.objects, r.points, 8);
+  const cv::Mat front = object_mask(r.objects, 0);
+
+  CanopyParams p;
+  const CanopyResult tree = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
+  ASSERT_TRUE(tree.present);
+  ASSERT_EQ(tree.n_segments, 2);
+  ASSERT_EQ(tree.segments.size(), 2u);
+  EXPECT_TRUE(tree.segments[0].selected);
+  EXPECT_FALSE(tree.segments[1].selected);
+  // The cut falls where the crowns meet (x = 160), within a bin and the points' spacing.
+  EXPECT_NEAR(tree.segments[0].hi_mm, 160, 40);
+  EXPECT_NEAR(tree.segments[1].lo_mm, 160, 40);
+  EXPECT_NEAR(tree.left_mm, -480, 40);
+  EXPECT_NEAR(tree.right_mm, 160, 40);
+  EXPECT_GT(iou(tree.silhouette.mask, front), 0.9);
+
+  // Off, or mode Row: one stretch of canopy.
+  CanopyParams off = p;
+  off.valley_share = 0;
+  EXPECT_EQ(select_canopy(r.vegetation, pts, s.g, off, r.left, r.right).n_segments, 1);
+  CanopyParams row = p;
+  row.mode = CanopyMode::Row;
+  EXPECT_EQ(select_canopy(r.vegetation, pts, s.g, row, r.left, r.right).n_segments, 1);
+
+  // One crown of two lobes: its top line dips by about a tenth of its height.
+  Scene lobes;
+  lobes.spheres.push_back({cv::Vec3d(-200, 0, 2200), 330});
+  lobes.spheres.push_back({cv::Vec3d(200, 0, 2200), 330});
+  lobes.wall_z = 5500;
+  const Rendered rl = render(lobes);
+  const auto lpts = grid_points(rl.objects, rl.points, 8);
+  const CanopyResult one = select_canopy(rl.vegetation, lpts, lobes.g, p, rl.left, rl.right);
+  ASSERT_TRUE(one.present);
+  EXPECT_EQ(one.n_segments, 1);
+  EXPECT_NEAR(one.left_mm, -530, 25);
+  EXPECT_NEAR(one.right_mm, 530, 25);
+
+  CanopyParams bad;
+  bad.valley_share = 1;
+  EXPECT_THROW(validate(bad), std::runtime_error);
+  bad = CanopyParams();
+  bad.min_crown_mm = -1;
+  EXPECT_THROW(validate(bad), std::runtime_error);
+}
+
 TEST(Canopy, NothingToDecide)
 {
   Scene s;

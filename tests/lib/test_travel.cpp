@@ -451,6 +451,116 @@ TEST(EstimateMotion, GreyViewsWork)
   EXPECT_NEAR(m.travel_mm, truth, std::max(0.02 * truth, 3.0));
 }
 
+// ---- Odometer: key frames ----
+
+// At 0.5 m/s (71 mm a frame) a 300 mm span measures three frames in four from a key frame; the
+// position over the sequence is the renderer's, and every step is the frame's own travel.
+TEST(Odometer, MeasuresFramesFromAKeyFrameWithinTheSpan)
+{
+  const double speed = 0.5;
+  OdometerParams p;
+  p.travel.scale = 1.0; // VGA is tracked at full size (as treemetrics does)
+  Odometer odo(p);
+  double position = 0;
+  int from_key = 0, found = 0;
+  const std::uint64_t first = 2, last = 11;
+  for (std::uint64_t k = first; k <= last; ++k) {
+    const StereoGeometry *g = nullptr;
+    const Frame &f = frame_of(kVga, speed, k, &g);
+    const OdometryStep s = odo.add(f.view[LEFT], f.view[RIGHT], f.vegetation, *g);
+    if (k == first) {
+      EXPECT_FALSE(s.found) << "the first frame has no travel";
+      continue;
+    }
+    ASSERT_TRUE(s.found) << "frame " << k;
+    ++found;
+    from_key += s.from_key;
+    const double truth = truth_travel(kVga, speed, k);
+    // A step from a key frame is the difference of two estimates: twice one's error at most.
+    EXPECT_NEAR(s.travel_mm, truth, 2 * std::max(0.02 * truth, 3.0)) << "frame " << k;
+    position += s.travel_mm;
+  }
+  SceneRenderer r(orchard(kVga, speed));
+  const double truth = r.travel_mm(last) - r.travel_mm(first);
+  std::printf("odometer 0.5 m/s: %d of %d frames from a key frame, position %.2f mm (truth "
+              "%.2f)\n",
+              from_key, found, position, truth);
+  EXPECT_GE(from_key, found / 2); // keys at frames 2, 6, 10: 6 of 9 measured from a key
+  EXPECT_NEAR(position, truth, 0.01 * truth);
+}
+
+// key_span_mm 0: every frame from the previous one; a frame without points (its motion not
+// found) is the next frame's key, and the one after measures from it.
+TEST(Odometer, NoSpanMeansThePreviousFrameAndALostFrameStartsAKey)
+{
+  const double speed = 0.5;
+  OdometerParams p;
+  p.travel.scale = 1.0;
+  p.key_span_mm = 0;
+  Odometer odo(p);
+  for (std::uint64_t k = 2; k <= 4; ++k) {
+    const StereoGeometry *g = nullptr;
+    const Frame &f = frame_of(kVga, speed, k, &g);
+    const OdometryStep s = odo.add(f.view[LEFT], f.view[RIGHT], f.vegetation, *g);
+    EXPECT_FALSE(s.from_key) << "frame " << k;
+    EXPECT_EQ(s.found, k > 2) << "frame " << k;
+  }
+  p.key_span_mm = 300;
+  Odometer keyed(p);
+  const StereoGeometry *g = nullptr;
+  const Frame &f2 = frame_of(kVga, speed, 2, &g), &f3 = frame_of(kVga, speed, 3),
+              &f4 = frame_of(kVga, speed, 4), &f5 = frame_of(kVga, speed, 5);
+  EXPECT_FALSE(keyed.add(f2.view[LEFT], f2.view[RIGHT], f2.vegetation, *g).found);
+  EXPECT_TRUE(keyed.add(f3.view[LEFT], f3.view[RIGHT], f3.vegetation, *g).found);
+  EXPECT_FALSE(keyed.add(f4.view[LEFT], f4.view[RIGHT], {}, *g).found) << "no points";
+  const OdometryStep s = keyed.add(f5.view[LEFT], f5.view[RIGHT], f5.vegetation, *g);
+  ASSERT_TRUE(s.found);
+  EXPECT_FALSE(s.from_key) << "frame 4 is the key: the previous frame";
+  EXPECT_NEAR(s.travel_mm, truth_travel(kVga, speed, 5), 3.0);
+  // Another view size: a first frame again.
+  const Frame &full = frame_of(kFull, speed, 5, &g);
+  EXPECT_FALSE(keyed.add(full.view[LEFT], full.view[RIGHT], full.vegetation, *g).found);
+  keyed.reset();
+  EXPECT_FALSE(keyed.add(f5.view[LEFT], f5.view[RIGHT], f5.vegetation, *g).found);
+}
+
+// A standing rig stays on its first key frame: nothing adds up.
+TEST(Odometer, AStandingRigKeepsItsKeyFrame)
+{
+  const StereoGeometry *g = nullptr;
+  const Frame &a = frame_of(kVga, 0.0, 0, &g), &b = frame_of(kVga, 0.0, 1);
+  OdometerParams p;
+  p.travel.scale = 1.0;
+  Odometer odo(p);
+  odo.add(a.view[LEFT], a.view[RIGHT], a.vegetation, *g);
+  double position = 0;
+  for (int i = 0; i < 4; ++i) {
+    const Frame &f = i % 2 ? a : b;
+    const OdometryStep s = odo.add(f.view[LEFT], f.view[RIGHT], f.vegetation, *g);
+    ASSERT_TRUE(s.found);
+    EXPECT_EQ(s.from_key, i > 0);
+    position += s.travel_mm;
+  }
+  EXPECT_LT(std::abs(position), 1.0);
+}
+
+TEST(Odometer, BadParametersThrow)
+{
+  OdometerParams p;
+  p.key_span_mm = -1;
+  EXPECT_THROW(Odometer{p}, std::runtime_error);
+  p.key_span_mm = p.travel.max_travel_mm + 1;
+  try {
+    Odometer o(p);
+    ADD_FAILURE() << "no exception";
+  } catch (const std::runtime_error &e) {
+    EXPECT_NE(std::string(e.what()).find("key_span_mm"), std::string::npos) << e.what();
+  }
+  p = OdometerParams();
+  p.travel.window = 4;
+  EXPECT_THROW(Odometer{p}, std::runtime_error);
+}
+
 TEST(EstimateMotion, BadInputAndParametersThrow)
 {
   const StereoGeometry *g = nullptr;

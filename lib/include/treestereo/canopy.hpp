@@ -65,6 +65,13 @@ struct CanopyParams {
   double max_row_depth_mm = 1600;
   // Along the row: empty stretches at least this long separate trees (mode Tree).
   double min_gap_mm = 80;
+  // Touching crowns (mode Tree): a stretch without a gap is cut where its top dips between two
+  // higher crowns by at least valley_share of the lower crown's height above the stretch's
+  // lowest canopy, each side at least min_crown_mm wide. Two round crowns that meet have such a
+  // notch in their top line where they meet (about a third of their height when they overlap by
+  // 5 % of their width); one crown's top does not dip that deep. 0: no cut.
+  double valley_share = 0.2;
+  double min_crown_mm = 250;
   // The spacing of the points' grid (px): a canopy point speaks for the vegetation within 1.5
   // spacings of it. 0 = estimated as sqrt(vegetation area / points).
   double sample_spacing_px = 0;

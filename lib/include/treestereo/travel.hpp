@@ -151,4 +151,56 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
                        const StereoGeometry &geometry, const TravelParams &params = TravelParams(),
                        const GroundPlane &ground = GroundPlane());
 
+// ---- The travel over a sequence: key frames ----
+//
+// Each estimate_motion() carries a small error of its own (a fraction of a pixel in the tracks,
+// a millimetre or two along the row), whatever the motion's size: summed frame after frame it
+// grows with the number of frames, not with the distance. The odometer measures each frame from
+// a key frame instead, as long as the travel since that key frame stays within key_span_mm; the
+// position then carries one estimate's error per key frame, not per frame. At 7 frames/s and a
+// 300 mm span that is one key frame in four at 0.5 m/s, in two at 1 m/s, and every frame from
+// about 2 m/s on (where the tracks over a longer span would thin out).
+struct OdometerParams {
+  TravelParams travel;
+  // The travel from the key frame to the frame measured, at most (mm); 0: always the previous
+  // frame (no key frames).
+  double key_span_mm = 300;
+};
+
+// Throws std::runtime_error naming the field when a value is out of range.
+void validate(const OdometerParams &params);
+
+struct OdometryStep {
+  bool found = false;
+  double travel_mm = 0;  // since the previous frame, along the row (positive towards +x)
+  bool from_key = false; // measured from a key frame older than the previous frame
+  Motion motion;         // the estimate it rests on (from the key frame, or the previous frame)
+};
+
+class Odometer {
+public:
+  explicit Odometer(const OdometerParams &params = OdometerParams()); // validates
+
+  // Adds a frame: its rectified views (as estimate_motion() takes them), its 3D points with
+  // their left pixels and its ground plane. The odometer keeps the views (cv::Mat shares the
+  // pixels): they must not be written afterwards. The first frame, a frame of another size or
+  // type, and a frame whose motion is found neither from the key frame nor from the previous
+  // frame give found = false, and the frame starts a new key. Throws what estimate_motion()
+  // throws.
+  OdometryStep add(const cv::Mat &left, const cv::Mat &right, const std::vector<PixelPoint> &points,
+                   const StereoGeometry &geometry, const GroundPlane &ground = GroundPlane());
+
+  // Forgets every frame kept: the next frame is a first one.
+  void reset();
+
+  const OdometerParams &params() const { return params_; }
+
+private:
+  OdometerParams params_;
+  cv::Mat key_[2], prev_[2];
+  double since_key_mm_ = 0; // travel from the key frame to the previous frame
+  double last_step_mm_ = 0; // the last step measured: the next one's likely size
+  bool key_is_prev_ = true;
+};
+
 } // namespace treestereo
