@@ -300,6 +300,8 @@ GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, 
     o.near_m = g.near_mm * kMmToM;
     o.n_points = guint(g.n_points);
     o.selected = g.selected;
+    o.joined_lo = g.joined_lo;
+    o.joined_hi = g.joined_hi;
   }
   return meta;
 }
@@ -317,6 +319,8 @@ std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta)
     o.near_mm = g.near_m * 1e3;
     o.n_points = g.n_points;
     o.selected = g.selected != FALSE;
+    o.joined_lo = g.joined_lo != FALSE;
+    o.joined_hi = g.joined_hi != FALSE;
     out.push_back(o);
   }
   return out;

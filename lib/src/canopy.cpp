@@ -552,6 +552,11 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       s.lo_mm = std::numeric_limits<double>::infinity();
       s.hi_mm = -s.lo_mm;
     }
+    // Runs a valley cut apart lie one bin apart (the valley's); an empty stretch between runs
+    // is at least min_gap_mm, four bins or more.
+    for (std::size_t k = 0; k + 1 < runs.size(); ++k)
+      if (runs[k + 1][0] - runs[k][1] <= 2)
+        r.segments[k].joined_hi = r.segments[k + 1].joined_lo = true;
     for (int i : zone) {
       const int k = runs.empty() ? 0 : run_of(P(i).x);
       const bool in = runs.empty() || p.mode == CanopyMode::Row || k == front;

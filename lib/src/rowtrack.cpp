@@ -217,9 +217,14 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
   std::vector<bool> seg_used(ns, false), kept_alive(nt, false);
   if (!row)
     for (std::size_t i = 0; i < ns; ++i) {
+      // A segment cut at a valley overlaps its neighbour's track by as much as the crowns grew
+      // into each other: that track counts only when the segment covers half of it or more.
+      const bool joined = f.segments[i].joined_lo || f.segments[i].joined_hi;
       std::vector<std::size_t> over;
       for (std::size_t t = 0; t < nt; ++t)
-        if (ov(i, t) > 0)
+        if (ov(i, t) > (joined ? 0.5 * std::min(tracks_[t].hi_mm - tracks_[t].lo_mm,
+                                                segs[i].hi - segs[i].lo)
+                               : 0.0))
           over.push_back(t);
       if (over.size() < 2)
         continue;
@@ -246,7 +251,9 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
       obs[p.track].push_back(p.seg);
     }
   // A segment left over on a track taken this frame: more of that tree (a sparse frame split
-  // it) or, mode Row, more of the same canopy.
+  // it) or, mode Row, more of the same canopy. Mode Tree: not when it touches that tree's
+  // segment (a crown grown into it, cut at their valley): a tree seen as one with its
+  // neighbour until the valley showed, now a tree of its own.
   std::vector<std::size_t> fresh;
   for (std::size_t i = 0; i < ns; ++i) {
     if (seg_used[i])
@@ -258,7 +265,14 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
         best = ov(i, t);
         best_t = t;
       }
-    if (best_t < nt)
+    bool own_tree = false;
+    if (!row && best_t < nt)
+      for (std::size_t j : obs[best_t])
+        own_tree = own_tree || (j + 1 == i && f.segments[i].joined_lo) ||
+                   (i + 1 == j && f.segments[i].joined_hi);
+    if (own_tree)
+      fresh.push_back(i);
+    else if (best_t < nt)
       obs[best_t].push_back(i);
     else
       fresh.push_back(i);

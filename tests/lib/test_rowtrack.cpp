@@ -41,6 +41,9 @@ struct Sim {
   bool merge_touching = false;        // touching canopies give one segment (mode Row)
   int split_frame = -1;               // up to this frame touching canopies are seen apart
   bool hide_second = false;           // ...or the second of them not at all
+  // Mode Tree: touching canopies are one segment until both show this much in view (mm), then
+  // two segments cut at the contact (a valley of the top line: joined_hi / joined_lo). < 0: off.
+  double valley_from_mm = -1;
 };
 
 struct SimFrame {
@@ -94,6 +97,7 @@ std::vector<SimFrame> simulate(const std::vector<TrueTree> &trees, Sim sim)
     struct Vis {
       double lo, hi, a, b;
       int tree;
+      bool joined_lo = false, joined_hi = false;
     };
     std::vector<Vis> vis;
     for (std::size_t i = 0; i < trees.size(); ++i) {
@@ -111,11 +115,26 @@ std::vector<SimFrame> simulate(const std::vector<TrueTree> &trees, Sim sim)
         sim.hidden = true;
         continue;
       }
-      vis.push_back({lo, hi, a, b, int(i)});
+      vis.push_back({lo, hi, a, b, int(i), false, false});
     }
     // Touching canopies as one segment, unless this frame is a split one.
     std::vector<Vis> segs;
     for (const Vis &v : vis) {
+      if (sim.valley_from_mm >= 0 && !segs.empty() && v.a <= segs.back().b + 1.0) {
+        const bool apart = segs.back().tree >= 0 && segs.back().hi - segs.back().lo >= sim.valley_from_mm &&
+                           v.hi - v.lo >= sim.valley_from_mm;
+        if (!apart) {
+          segs.back().hi = std::max(segs.back().hi, v.hi);
+          segs.back().b = v.b;
+          segs.back().tree = -1;
+          continue;
+        }
+        segs.back().joined_hi = true;
+        Vis w = v;
+        w.joined_lo = true;
+        segs.push_back(w);
+        continue;
+      }
       if (sim.merge_touching && f > sim.split_frame && !segs.empty() &&
           v.a <= segs.back().b + 1.0) {
         segs.back().hi = std::max(segs.back().hi, v.hi);
@@ -142,6 +161,8 @@ std::vector<SimFrame> simulate(const std::vector<TrueTree> &trees, Sim sim)
       r.hi_mm = segs[i].hi;
       r.near_mm = kNear;
       r.n_points = 100;
+      r.joined_lo = segs[i].joined_lo;
+      r.joined_hi = segs[i].joined_hi;
       tf.segments.push_back(r);
       const double c = 0.5 * (segs[i].lo + segs[i].hi);
       if (front < 0 ||
@@ -419,6 +440,38 @@ TEST(TreeTracker, RowModeTouchingCanopiesAreOneSegment)
       EXPECT_TRUE(got[0].record.complete);
       EXPECT_EQ(got[0].record.mode, CanopyMode::Row);
     }
+  }
+}
+
+// Mode Tree: two crowns grown into each other are one segment while one of them shows less than
+// 300 mm in view, then two segments cut at their valley. Each is a tree of its own, measured
+// from the frames it is seen apart.
+TEST(TreeTracker, TouchingCrownsCutAtTheirValleyAreTwoTrees)
+{
+  const std::vector<TrueTree> row = {{1000, 1750, 0.9, 2.0}, {1700, 2400, 1.0, 2.0},
+                                     {2900, 3500, 0.95, 2.0}};
+  for (double speed : {0.5, 1.0, 2.0}) {
+    SCOPED_TRACE("speed " + std::to_string(speed));
+    Sim sim;
+    sim.speed_m_s = speed;
+    sim.to_mm = 6000;
+    sim.top_clipped_tree = -1;
+    sim.valley_from_mm = 300;
+    const auto frames = simulate(row, sim);
+    TreeTracker tracker;
+    const auto got = run(tracker, frames);
+    ASSERT_EQ(got.size(), 3u);
+    for (std::size_t i = 0; i < 3; ++i) {
+      SCOPED_TRACE("tree " + std::to_string(i));
+      const TreeRecord &r = got[i].record;
+      EXPECT_EQ(r.id, int(i) + 1);
+      EXPECT_TRUE(r.complete) << to_json(r);
+      EXPECT_NEAR(r.position_m, row[i].centre_m(), 0.05);
+      ASSERT_TRUE(r.has_height && r.has_width);
+      EXPECT_DOUBLE_EQ(r.height_m, row[i].height_m);
+      EXPECT_DOUBLE_EQ(r.width_m, row[i].width_m());
+    }
+    EXPECT_NEAR(got[1].record.gap_m, -0.05, 0.03); // the crowns overlap by 50 mm
   }
 }
 

@@ -110,6 +110,9 @@ struct RowSegment {
   double near_mm = 0;          // the 5th percentile of its points' Z
   std::size_t n_points = 0;
   bool selected = false;       // part of the canopy this result reports
+  // Cut from the segment before (lo) or after (hi) it where their crowns touch (a valley of the
+  // top line, CanopyParams::valley_share), not separated by an empty stretch.
+  bool joined_lo = false, joined_hi = false;
 };
 
 struct CanopyResult {

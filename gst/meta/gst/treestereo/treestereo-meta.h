@@ -325,6 +325,9 @@ GType gst_tree_stereo_canopy_mode_get_type (void);
  * @n_points: 3D points in it
  * @selected: TRUE when it is part of the canopy the meta's @view is (mode tree: the tree in
  *   front; mode row: every segment)
+ * @joined_lo: TRUE when it is cut from the segment before it where their crowns touch (no
+ *   empty stretch between them: two trees grown into each other, mode tree)
+ * @joined_hi: likewise with the segment after it
  *
  * One stretch of the near row along x, separated from the next by an empty stretch (mode tree),
  * or one continuous canopy (mode row).
@@ -335,6 +338,8 @@ typedef struct {
   gdouble near_m;
   guint n_points;
   gboolean selected;
+  gboolean joined_lo;
+  gboolean joined_hi;
 } GstTreeStereoRowSegment;
 
 /* Segments a canopy meta holds at most (the view of a rig between two rows holds a few). */
