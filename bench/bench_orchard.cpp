@@ -32,6 +32,8 @@
 // apart.
 #include "chain_sweep.hpp"
 #include "treestereo/metrics.hpp"
+#include "treestereo/rowmap.hpp"
+#include "treestereo/spray.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/calib3d.hpp>
@@ -598,7 +600,143 @@ struct DrivebyRun {
   int true_trees = 0, chain_trees = 0;      // trees fully in view at some frame; complete records
   std::vector<double> pos_err_cm, height_err, width_err; // matched trees
   int gaps = 0, gaps_seen = 0;              // true gaps of 10 cm and more; of them, in the map
+  // spraycontrol (defaults: one section per band of the map), against the renderer's canopy
+  // per band: switch errors along the row (mm), the sprayed length's error per section (%),
+  // true switches without a command of the chain and commands without a true switch, gaps of
+  // 10 cm and more the valve closed in.
+  std::vector<double> switch_err_mm, length_err;
+  int switches_missed = 0, switches_extra = 0, spray_gaps = 0, spray_gaps_closed = 0;
 };
+
+// The truth of spraycontrol's commands: per band of the row map (heights above the ground), the
+// near row's canopy along the row as the left camera sees it (GroundTruth::row_points_mm of every
+// frame, in 10 mm bins), gaps shorter than min_gap closed, canopy shorter than min_canopy dropped
+// (SprayParams' defaults, as spraycontrol's).
+struct SprayTruth {
+  static constexpr double kBinMm = 10;
+  double lo_mm = 0;
+  std::vector<std::vector<bool>> present; // [band][bin]
+  std::vector<double> band_edges_mm;
+
+  SprayTruth(double lo_mm_, double hi_mm, const RowMapParams &map)
+      : lo_mm(lo_mm_)
+  {
+    const int nb = map.n_bands;
+    for (int b = 0; b <= nb; ++b)
+      band_edges_mm.push_back(map.min_height_mm +
+                              (map.max_height_mm - map.min_height_mm) * b / nb);
+    present.assign(std::size_t(nb), std::vector<bool>(std::size_t((hi_mm - lo_mm) / kBinMm) + 1));
+  }
+  void add(const GroundTruth &t, double travel_mm, double camera_height_mm)
+  {
+    for (const cv::Point3f &q : t.row_points_mm) {
+      const double h = camera_height_mm - q.y, x = travel_mm + q.x;
+      const long bin = std::lround(std::floor((x - lo_mm) / kBinMm));
+      if (bin < 0 || bin >= long(present[0].size()))
+        continue;
+      for (std::size_t b = 0; b + 1 < band_edges_mm.size(); ++b)
+        if (h >= band_edges_mm[b] && h < band_edges_mm[b + 1])
+          present[b][std::size_t(bin)] = true;
+    }
+  }
+  // The sprayed intervals of band b (world x, mm).
+  std::vector<std::pair<double, double>> intervals(std::size_t b, const SprayParams &sp) const
+  {
+    std::vector<std::pair<double, double>> runs;
+    const auto &v = present[b];
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (!v[i])
+        continue;
+      const double a = lo_mm + double(i) * kBinMm, e = a + kBinMm;
+      if (!runs.empty() && a - runs.back().second < sp.min_gap_m * 1000)
+        runs.back().second = e;
+      else
+        runs.emplace_back(a, e);
+    }
+    std::vector<std::pair<double, double>> out;
+    for (const auto &r : runs)
+      if (r.second - r.first >= sp.min_canopy_m * 1000)
+        out.push_back(r);
+    return out;
+  }
+};
+
+// spraycontrol's commands of a run against SprayTruth over world x in [w_lo, w_hi] (mm). A
+// command's switch along the row is where the nozzle is when the valve has switched: the rig's
+// true position at at_ns + the valve latency, minus the nozzle offset.
+void score_spray(DrivebyRun &run, const SprayTruth &truth,
+                 const std::vector<GstTreeStereoSectionCommand> &cmds, double speed_mm_s,
+                 double w_lo, double w_hi)
+{
+  const SprayParams sp;
+  const double latency_s = double(sp.valve_latency_ns) * 1e-9;
+  const double match_mm = 300;
+  for (std::size_t b = 0; b < truth.present.size(); ++b) {
+    // The chain's switches of this section, in order, as world x.
+    std::vector<std::pair<double, bool>> sw;
+    for (const auto &c : cmds)
+      if (c.section == b && !c.fallback)
+        sw.emplace_back((double(c.at_ns) * 1e-9 + latency_s) * speed_mm_s -
+                            sp.nozzle_offset_m * 1000,
+                        c.on != FALSE);
+    std::stable_sort(sw.begin(), sw.end());
+    const auto iv = truth.intervals(b, sp);
+    std::vector<std::pair<double, bool>> edges;
+    for (const auto &r : iv) {
+      if (r.first > w_lo && r.first < w_hi)
+        edges.emplace_back(r.first, true);
+      if (r.second > w_lo && r.second < w_hi)
+        edges.emplace_back(r.second, false);
+    }
+    std::vector<bool> used(sw.size(), false);
+    for (const auto &[x, on] : edges) {
+      std::size_t best = sw.size();
+      for (std::size_t i = 0; i < sw.size(); ++i)
+        if (!used[i] && sw[i].second == on && std::abs(sw[i].first - x) <= match_mm &&
+            (best == sw.size() || std::abs(sw[i].first - x) < std::abs(sw[best].first - x)))
+          best = i;
+      if (best == sw.size()) {
+        ++run.switches_missed;
+        continue;
+      }
+      used[best] = true;
+      run.switch_err_mm.push_back(sw[best].first - x);
+    }
+    for (std::size_t i = 0; i < sw.size(); ++i)
+      if (!used[i] && sw[i].first > w_lo + match_mm && sw[i].first < w_hi - match_mm)
+        ++run.switches_extra;
+    // Sprayed length within the window: the chain's open stretches against the truth's.
+    auto clip = [&](double a, double e) { return std::max(0.0, std::min(e, w_hi) - std::max(a, w_lo)); };
+    double chain_len = 0, true_len = 0;
+    bool open = false;
+    double from = 0;
+    for (const auto &[x, on] : sw) {
+      if (on && !open)
+        from = x;
+      else if (!on && open)
+        chain_len += clip(from, x);
+      open = on;
+    }
+    if (open)
+      chain_len += clip(from, w_hi);
+    for (const auto &r : iv)
+      true_len += clip(r.first, r.second);
+    if (true_len > 0)
+      run.length_err.push_back(100 * (chain_len - true_len) / true_len);
+    // Gaps of 10 cm and more between sprayed stretches: the valve is closed at the gap's middle.
+    for (std::size_t i = 0; i + 1 < iv.size(); ++i) {
+      const double g0 = iv[i].second, g1 = iv[i + 1].first, mid = 0.5 * (g0 + g1);
+      if (g1 - g0 < 100 || mid < w_lo || mid > w_hi)
+        continue;
+      ++run.spray_gaps;
+      bool state = false;
+      for (const auto &[x, on] : sw)
+        if (x <= mid)
+          state = on;
+      run.spray_gaps_closed += !state;
+    }
+  }
+}
 
 void driveby_sweep(const Options &o)
 {
@@ -644,7 +782,16 @@ void driveby_sweep(const Options &o)
       std::vector<ChainTree> chain;
       const std::string tail = "stereodepth canopy=tree " + p.stereodepth +
                                " ! treemetrics row-map-location=" + map_csv + " " +
-                               p.treemetrics + " ! appsink sync=false name=out";
+                               p.treemetrics + " ! spraycontrol ! appsink sync=false name=out";
+      std::vector<GstTreeStereoSectionCommand> commands;
+      const RowMapParams map_params;
+      SprayTruth spray_truth(-3000, 1000 * (last + 3), map_params);
+      for (int k = 0; k < run.frames; ++k) {
+        cv::Mat rgb;
+        GroundTruth gt;
+        renderer.render(LEFT, std::uint64_t(k), rgb, &gt);
+        spray_truth.add(gt, renderer.travel_mm(std::uint64_t(k)), run.c.params().camera_height_mm);
+      }
       const auto on_frame = [&](int frame, const std::vector<GstBuffer *> &buf) {
         if (const auto *m = gst_buffer_get_tree_stereo_metrics_meta(buf[0])) {
           run.position = m->metrics.position_m;
@@ -659,6 +806,11 @@ void driveby_sweep(const Options &o)
       };
       const auto on_element = [&](GstMessage *msg) {
         const GstStructure *st = gst_message_get_structure(msg);
+        GstTreeStereoSectionCommand cmd;
+        if (st && gst_tree_stereo_section_message_parse(st, &cmd)) {
+          commands.push_back(cmd);
+          return;
+        }
         GstTreeStereoTreeRecord rec = {};
         if (!st || !gst_structure_has_name(st, GST_TREE_STEREO_MESSAGE_TREE) ||
             !gst_tree_stereo_tree_message_parse(st, &rec, nullptr))
@@ -684,6 +836,9 @@ void driveby_sweep(const Options &o)
                        {"out"}, on_frame, "bench-orchard", on_element);
       for (const ChainTree &t : chain)
         run.chain_trees += t.complete;
+      // The sprayer over the stretch whose map is final: from the view's left edge at the start
+      // (as far as the nozzles still lie ahead of it) to the rig's last position.
+      score_spray(run, spray_truth, commands, speed * 1000, -1000, 1000 * last - 50);
       for (const RowTree &t : truth) {
         const ChainTree *best = nullptr;
         for (const ChainTree &c : chain)
@@ -809,6 +964,61 @@ void driveby_sweep(const Options &o)
       row(which == 0 ? "tuning" : which == 1 ? "held-out" : "all", which, speed);
     }
   row("all", 2, 0);
+  std::printf("\n");
+
+  std::printf("### Drive-by: spraycontrol's valve commands (defaults: a section per band of the "
+              "map, nozzles 1.5 m behind, 160 ms valves)\n\n");
+  std::printf("Truth per band: the near row's visible canopy (GroundTruth::row_points_mm of every "
+              "frame) between the band's heights, gaps under 75 mm closed, canopy under 100 mm "
+              "dropped, over the stretch from -1 m to the rig's last position. A switch's place "
+              "is where the nozzle is when the valve has switched (the true rig position at at-ns "
+              "+ latency, minus the offset). Targets: every switch within one frame's travel, "
+              "gaps of 10 cm and more closed, sprayed length within 5 %% per section.\n\n");
+  std::printf("| seeds | speed (m/s) | one frame's travel (mm) | switches within it / matched | "
+              "switch \\|err\\| mm mean / worst | missed / extra | sprayed length \\|err\\| %% "
+              "mean / worst | gaps >= 10 cm closed |\n");
+  std::printf("|---|---|---|---|---|---|---|---|\n");
+  auto spray_row = [&](const char *set, int which, double speed) {
+    std::vector<double> err, len;
+    int within = 0, missed = 0, extra = 0, gaps = 0, closed = 0, n = 0;
+    for (const DrivebyRun &r : runs) {
+      if ((which == 0 && r.held_out) || (which == 1 && !r.held_out) ||
+          std::abs(r.c.speed_m_s - speed) > 1e-9)
+        continue;
+      ++n;
+      const double frame_mm = speed * 1000 / 7.0;
+      for (double e : r.switch_err_mm) {
+        err.push_back(std::abs(e));
+        within += std::abs(e) <= frame_mm;
+      }
+      for (double e : r.length_err)
+        len.push_back(std::abs(e));
+      missed += r.switches_missed;
+      extra += r.switches_extra;
+      gaps += r.spray_gaps;
+      closed += r.spray_gaps_closed;
+    }
+    if (!n)
+      return;
+    auto mw = [](const std::vector<double> &v, const char *fmt) {
+      if (v.empty())
+        return std::string("-");
+      double sum = 0, mx = 0;
+      for (double x : v) {
+        sum += x;
+        mx = std::max(mx, x);
+      }
+      char b[64];
+      std::snprintf(b, sizeof b, fmt, sum / double(v.size()), mx);
+      return std::string(b);
+    };
+    std::printf("| %s | %.1f | %.0f | %d / %zu | %s | %d / %d | %s | %d / %d |\n", set, speed,
+                speed * 1000 / 7.0, within, err.size(), mw(err, "%.0f / %.0f").c_str(), missed,
+                extra, mw(len, "%.2f / %.2f").c_str(), closed, gaps);
+  };
+  for (int which : {0, 1})
+    for (double speed : parse_list(o.speeds))
+      spray_row(which == 0 ? "tuning" : "held-out", which, speed);
   std::printf("\n");
 }
 

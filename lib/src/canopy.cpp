@@ -131,24 +131,30 @@ std::vector<cv::Vec2i> occupied_runs(const std::vector<double> &hist, double min
 }
 
 // Cuts runs of bins (along the row) where the top line dips between two crowns (CanopyParams::
-// valley_share). `top`: per bin, the height of its highest point (-inf: none); `heights`: the
-// heights of the points `zone`, `bin_of` their bin. The top line is first closed over one bin on
-// each side (a bin between two points of a crown's top that holds only lower leaves is no
-// notch). A cut leaves the valley's bin out of both runs: the cut falls on its centre.
+// valley_share). `top`, `bottom`: per bin, the heights of its highest and lowest point (-inf and
+// +inf: none); `heights`: the heights of the points `zone`, `bin_of` their bin. The lines are
+// first closed over one bin on each side (a bin between two points of a crown's top that holds
+// only lower leaves is no notch). Where two crowns of unequal height meet, the top line is
+// lowest on the lower crown's shoulder, not where they meet: the cut is placed between the two
+// summits where the canopy is thinnest from top to bottom (both crowns near their edge), the
+// valley's middle on a tie. A cut leaves that bin out of both runs: the cut falls on its centre.
 template <class BinOf>
 std::vector<cv::Vec2i> split_at_valleys(const std::vector<cv::Vec2i> &runs,
                                         const std::vector<double> &top,
+                                        const std::vector<double> &bottom,
                                         const std::vector<double> &heights,
                                         const std::vector<int> &zone, BinOf bin_of, double bin,
                                         const CanopyParams &p)
 {
   const double ninf = -std::numeric_limits<double>::infinity();
   const int nb = int(top.size());
-  std::vector<double> line(top.size(), ninf);
+  std::vector<double> line(top.size(), ninf), low(top.size(), -ninf);
   for (int b = 0; b < nb; ++b)
     for (int d = -1; d <= 1; ++d)
-      if (b + d >= 0 && b + d < nb)
+      if (b + d >= 0 && b + d < nb) {
         line[std::size_t(b)] = std::max(line[std::size_t(b)], top[std::size_t(b + d)]);
+        low[std::size_t(b)] = std::min(low[std::size_t(b)], bottom[std::size_t(b + d)]);
+      }
   // The lowest canopy under each run: the 5th percentile of its points' heights.
   std::vector<std::vector<double>> run_heights(runs.size());
   for (std::size_t k = 0; k < zone.size(); ++k) {
@@ -200,6 +206,37 @@ std::vector<cv::Vec2i> split_at_valleys(const std::vector<cv::Vec2i> &runs,
         out.push_back(run);
         continue;
       }
+      // Between the summits on either side (the first bins as high as each side's top), where
+      // the canopy is thinnest; the middle of the thinnest stretch.
+      int peak_l = best - 1, peak_r = best + 1;
+      {
+        double hl = ninf, hr = ninf;
+        for (int b = s; b < best; ++b)
+          if (line[std::size_t(b)] >= hl) {
+            hl = line[std::size_t(b)];
+            peak_l = b;
+          }
+        for (int b = e; b > best; --b)
+          if (line[std::size_t(b)] >= hr) {
+            hr = line[std::size_t(b)];
+            peak_r = b;
+          }
+      }
+      const int lo_b = std::max(peak_l + 1, s + min_bins), hi_b = std::min(peak_r - 1, e - min_bins);
+      double thinnest = std::numeric_limits<double>::infinity();
+      int first = best, last = best;
+      for (int b = lo_b; b <= hi_b; ++b) {
+        const double t = line[std::size_t(b)] - low[std::size_t(b)];
+        if (!std::isfinite(t))
+          continue;
+        if (t < thinnest - 1e-9) {
+          thinnest = t;
+          first = last = b;
+        } else if (t <= thinnest + 1e-9) {
+          last = b;
+        }
+      }
+      best = (first + last) / 2;
       todo.emplace_back(best + 1, e);
       todo.emplace_back(s, best - 1);
     }
@@ -507,14 +544,16 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       // The top line of each bin: the height of its highest point (above the ground when it is
       // known, else up in the camera frame).
       std::vector<double> top(hist.size(), -std::numeric_limits<double>::infinity());
+      std::vector<double> bottom(hist.size(), std::numeric_limits<double>::infinity());
       std::vector<double> heights(zone.size());
       for (std::size_t k = 0; k < zone.size(); ++k) {
         const cv::Point3d X = P(zone[k]);
         heights[k] = r.ground.found ? r.ground.height_of(X) : -X.y;
-        double &t = top[std::size_t((X.x - xmin) / bin)];
-        t = std::max(t, heights[k]);
+        const std::size_t b = std::size_t((X.x - xmin) / bin);
+        top[b] = std::max(top[b], heights[k]);
+        bottom[b] = std::min(bottom[b], heights[k]);
       }
-      runs = split_at_valleys(runs, top, heights, zone,
+      runs = split_at_valleys(runs, top, bottom, heights, zone,
                               [&](int i) { return int((P(i).x - xmin) / bin); }, bin, p);
     }
     r.n_segments = int(runs.size());

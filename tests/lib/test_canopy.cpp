@@ -381,6 +381,22 @@ TEST(Canopy, TouchingCrownsAreCutWhereTheirTopLineDips)
   row.mode = CanopyMode::Row;
   EXPECT_EQ(select_canopy(r.vegetation, pts, s.g, row, r.left, r.right).n_segments, 1);
 
+  // A low crown grown into a taller one (their bottoms level): the top line is lowest on the
+  // low crown's shoulder; the cut still falls where they meet (x 90..130).
+  Scene uneven;
+  uneven.spheres.push_back({cv::Vec3d(-150, 50, 2200), 280});  // x -430..130
+  uneven.spheres.push_back({cv::Vec3d(440, -20, 2200), 350});  // x 90..790
+  uneven.wall_z = 5500;
+  const Rendered ru = render(uneven);
+  const auto upts = grid_points(ru.objects, ru.points, 8);
+  const CanopyResult two = select_canopy(ru.vegetation, upts, uneven.g, p, ru.left, ru.right);
+  ASSERT_EQ(two.segments.size(), 2u);
+  EXPECT_TRUE(two.segments[0].joined_hi);
+  EXPECT_TRUE(two.segments[1].joined_lo);
+  EXPECT_FALSE(two.segments[0].joined_lo);
+  EXPECT_NEAR(two.segments[0].hi_mm, 110, 40);
+  EXPECT_NEAR(two.segments[1].lo_mm, 110, 40);
+
   // One crown of two lobes: its top line dips by about a tenth of its height.
   Scene lobes;
   lobes.spheres.push_back({cv::Vec3d(-200, 0, 2200), 330});
