@@ -795,6 +795,20 @@ void driveby_sweep(const Options &o)
       const auto on_frame = [&](int frame, const std::vector<GstBuffer *> &buf) {
         if (const auto *m = gst_buffer_get_tree_stereo_metrics_meta(buf[0])) {
           run.position = m->metrics.position_m;
+          // The near row's segments along the row (world x: the frame's position + X).
+          if (const auto *cm = gst_buffer_get_tree_stereo_canopy_meta(buf[0])) {
+            std::string segs;
+            char b[96];
+            for (guint i = 0; i < std::min<guint>(cm->n_stored_segments, GST_TREE_STEREO_MAX_SEGMENTS); ++i) {
+              const GstTreeStereoRowSegment &g = cm->segments[i];
+              std::snprintf(b, sizeof b, " %s%.3f..%.3f%s%s", g.joined_lo ? "~" : "[",
+                            g.lo_m + m->metrics.position_m, g.hi_m + m->metrics.position_m,
+                            g.joined_hi ? "~" : "]", g.selected ? "*" : "");
+              segs += b;
+            }
+            std::fprintf(stderr, "driveby seed=%llu speed=%.1f frame %d: segments%s\n",
+                         (unsigned long long)run.c.seed, speed, frame, segs.c_str());
+          }
           std::fprintf(stderr, "driveby seed=%llu speed=%.1f frame %d: travel %.4f m (%s, truth "
                        "%.4f), position %.3f m (truth %.3f)\n",
                        (unsigned long long)run.c.seed, speed, frame, m->metrics.travel_m,

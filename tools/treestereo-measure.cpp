@@ -7,6 +7,7 @@
 // a recording is always playable.
 #include "treestereo/calibration.hpp"
 #include "treestereo/json.hpp"
+#include "treestereo/rowmap.hpp"
 #include "treestereo/rowtrack.hpp"
 #include "treestereo/scene.hpp"
 
@@ -599,8 +600,12 @@ std::string build_description(Job &job)
     d << " speed=" << o.rig_speed;
   if (o.row_map)
     d << " row-map-location=" << quoted(o.row_map);
-  if (o.sections)
+  if (o.sections) {
     d << " ! spraycontrol name=spray";
+    // A file of commands gets its picture beside it: the row map with the valve timeline.
+    if (std::string(o.sections) != "-")
+      d << " timeline-location=" << quoted(with_extension(o.sections, ".png"));
+  }
   if (o.record) {
     d << " ! tee name=t t. ! queue ! fakesink name=results sync=false async=false"
       << " t. ! queue ! treeoverlay ! videoconvert ! video/x-raw,format=I420 ! x264enc bitrate="
@@ -697,7 +702,8 @@ int run(int argc, char **argv)
        "Row canopy map: CSV here, PNG beside it (FILE with .png), written at the end", "FILE.csv"},
       {"sections", 0, 0, G_OPTION_ARG_FILENAME, &o.sections,
        "Nozzle-section valve commands (spraycontrol, defaults of docs/spraying.md), one JSON "
-       "line each ('-' = stdout)",
+       "line each ('-' = stdout); a file gets the row map with the valve timeline under it "
+       "beside it (FILE with .png)",
        "FILE"},
       {"rig-speed", 0, 0, G_OPTION_ARG_DOUBLE, &o.rig_speed,
        "The rig's speed from outside (wheel odometry, GNSS), m/s; 0 = measured by stereo (0)",

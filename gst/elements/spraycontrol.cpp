@@ -118,6 +118,7 @@ enum {
   PROP_HOLD_TIME,
   PROP_FALLBACK,
   PROP_POST_MESSAGES,
+  PROP_TIMELINE_LOCATION,
 };
 
 namespace {
@@ -133,6 +134,7 @@ struct Settings {
   guint hold_time = DEFAULT_HOLD_TIME; // ms
   GstSprayControlFallback fallback = DEFAULT_FALLBACK;
   bool post_messages = DEFAULT_POST_MESSAGES;
+  std::string timeline_location; // empty: no picture
 };
 
 /* The plan of one stream; guarded by State::plan_lock (the streaming thread and the clock's
@@ -152,6 +154,8 @@ struct Plan {
   GstClockTime arrival = 0;  // clock time the last frame arrived
   std::int64_t last_running = 0; // its running time
   bool post_messages = true;
+  std::vector<SectionCommand> planned; // the canopy's commands, for the timeline's picture
+  bool keep_planned = false;
   guint hold_ms = DEFAULT_HOLD_TIME;
   const char *fallback_name = "on";
 };
@@ -392,6 +396,9 @@ static GstFlowReturn gst_spray_control_transform_ip(GstBaseTransform *trans, Gst
       slices = take_final_slices(*p.map, position_m * 1000.0, p.next_bin, p.ranges);
     }
     commands = p.planner->update(std::int64_t(running), position_m, slices);
+    p.keep_planned = !s.timeline_location.empty();
+    if (p.keep_planned)
+      p.planned.insert(p.planned.end(), commands.begin(), commands.end());
     schedule_hold(self, p, std::int64_t(running));
     return true;
   });
@@ -400,6 +407,38 @@ static GstFlowReturn gst_spray_control_transform_ip(GstBaseTransform *trans, Gst
   post_fallback(self, gap);
   post_commands(self, commands, s.post_messages, false);
   return GST_FLOW_OK;
+}
+
+/* At EOS: the row map with the valve timeline under it, at timeline-location. */
+static bool write_timeline(GstSprayControl *self)
+{
+  GST_OBJECT_LOCK(self);
+  const std::string location = self->settings.timeline_location;
+  GST_OBJECT_UNLOCK(self);
+  if (location.empty())
+    return true;
+  State *st = self->state;
+  std::lock_guard<std::mutex> lock(st->plan_lock);
+  const Plan &p = st->plan;
+  if (!p.map || p.map->empty()) {
+    GST_ELEMENT_WARNING(self, STREAM, FAILED,
+                        ("No valve timeline written to \"%s\": the row map is empty (no 3D "
+                         "canopy, or no ground plane: see stereodepth's ground=rig).",
+                         location.c_str()),
+                        (nullptr));
+    return true;
+  }
+  try {
+    p.map->write_png(location, {}, sprayed_stretches(p.planned),
+                     p.planner ? p.planner->params().n_sections : p.map->n_bands());
+  } catch (const std::exception &e) {
+    GST_ELEMENT_ERROR(self, RESOURCE, OPEN_WRITE,
+                      ("Could not write the valve timeline to \"%s\".", location.c_str()),
+                      ("%s", e.what()));
+    return false;
+  }
+  GST_INFO_OBJECT(self, "valve timeline written to %s", location.c_str());
+  return true;
 }
 
 static gboolean gst_spray_control_sink_event(GstBaseTransform *trans, GstEvent *event)
@@ -416,8 +455,12 @@ static gboolean gst_spray_control_sink_event(GstBaseTransform *trans, GstEvent *
       if (st->plan.planner)
         commands = st->plan.planner->finish();
       post = st->plan.post_messages;
+      if (st->plan.keep_planned)
+        st->plan.planned.insert(st->plan.planned.end(), commands.begin(), commands.end());
     }
     post_commands(self, commands, post, false);
+    if (!write_timeline(self))
+      return FALSE;
   } else if (GST_EVENT_TYPE(event) == GST_EVENT_STREAM_START) {
     std::lock_guard<std::mutex> lock(st->plan_lock);
     unschedule_hold(st->plan);
@@ -478,6 +521,11 @@ static void gst_spray_control_set_property(GObject *object, guint prop_id, const
   case PROP_HOLD_TIME: s.hold_time = g_value_get_uint(value); break;
   case PROP_FALLBACK: s.fallback = GstSprayControlFallback(g_value_get_enum(value)); break;
   case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
+  case PROP_TIMELINE_LOCATION: {
+    const gchar *v = g_value_get_string(value);
+    s.timeline_location = v ? v : "";
+    break;
+  }
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
   GST_OBJECT_UNLOCK(self);
@@ -502,6 +550,9 @@ static void gst_spray_control_get_property(GObject *object, guint prop_id, GValu
   case PROP_HOLD_TIME: g_value_set_uint(value, s.hold_time); break;
   case PROP_FALLBACK: g_value_set_enum(value, s.fallback); break;
   case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
+  case PROP_TIMELINE_LOCATION:
+    g_value_set_string(value, s.timeline_location.empty() ? nullptr : s.timeline_location.c_str());
+    break;
   default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
   }
   GST_OBJECT_UNLOCK(self);
@@ -589,6 +640,12 @@ static void gst_spray_control_class_init(GstSprayControlClass *klass)
       g_param_spec_boolean("post-messages", "Post messages",
                            "Post a 'treestereo-section' element message per valve command",
                            DEFAULT_POST_MESSAGES, RW_PLAYING));
+  g_object_class_install_property(
+      gobject_class, PROP_TIMELINE_LOCATION,
+      g_param_spec_string("timeline-location", "Timeline location",
+                          "PNG written at the end of the stream: the row map with each "
+                          "section's valve timeline under it (NULL: none)",
+                          nullptr, RW_READY));
 
   gst_element_class_add_static_pad_template(element_class, &sink_template);
   gst_element_class_add_static_pad_template(element_class, &src_template);

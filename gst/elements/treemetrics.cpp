@@ -525,12 +525,7 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
 static bool write_row_map(GstTreeMetrics *self, const std::string &location)
 {
   Along &a = self->state->along;
-  std::string png = location;
-  const std::size_t slash = png.find_last_of('/');
-  const std::size_t dot = png.find_last_of('.');
-  if (dot != std::string::npos && (slash == std::string::npos || dot > slash))
-    png.erase(dot);
-  png += ".png";
+  const std::string png = with_extension(location, ".png");
   std::string failed;
   try {
     failed = location;

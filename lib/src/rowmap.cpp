@@ -417,12 +417,61 @@ cv::Mat RowMap::render(const std::vector<TreeRecord> &trees, const RowMapRenderP
   return img;
 }
 
-void RowMap::write_png(const std::string &path, const std::vector<TreeRecord> &trees,
-                       const RowMapRenderParams &r) const
+cv::Mat RowMap::render_with_timeline(const std::vector<TreeRecord> &trees,
+                                     const std::vector<SprayedStretch> &sprayed, int sections,
+                                     const RowMapRenderParams &r) const
 {
-  if (bins_.empty())
-    throw std::runtime_error("row map: nothing to write to " + path + ": no frame added a bin");
-  const cv::Mat img = render(trees, r);
+  int needed = 0;
+  for (const SprayedStretch &s : sprayed) {
+    if (s.section < 0 || !std::isfinite(s.start_m) || std::isnan(s.end_m) || s.end_m < s.start_m)
+      throw std::runtime_error("row map timeline: a stretch with a negative section or an end "
+                               "before its start");
+    needed = std::max(needed, s.section + 1);
+  }
+  if (sections < needed || sections > 256)
+    throw std::runtime_error("row map timeline: sections out of range (every stretch's section "
+                             "+ 1 to 256)");
+  const cv::Mat map = render(trees, r);
+  cv::Mat img(map.rows + kTimelineTop + sections * kStripHeight, map.cols, CV_8UC3,
+              cv::Scalar(255, 255, 255));
+  map.copyTo(img(cv::Rect(0, 0, map.cols, map.rows)));
+  const long b0 = first_bin(), nbins = bins_.empty() ? 0 : last_bin() - b0 + 1;
+  const double lo_m = double(b0) * params_.bin_mm * kMmToM;
+  const double hi_m = double(b0 + nbins) * params_.bin_mm * kMmToM;
+  auto x_of_m = [&](double x_m) {
+    return kMarginLeft + int(std::lround((std::clamp(x_m, lo_m, hi_m) * 1000.0 / params_.bin_mm -
+                                          double(b0)) *
+                                         r.px_per_bin));
+  };
+  const int font = cv::FONT_HERSHEY_SIMPLEX;
+  const cv::Scalar ink(30, 30, 30);
+  const int top = map.rows + kTimelineTop;
+  cv::putText(img, "valves open (section, along the canopy they spray)",
+              cv::Point(kMarginLeft, map.rows + kTimelineTop - 8), font, 0.4, ink, 1, cv::LINE_AA);
+  for (int k = 0; k < sections; ++k) {
+    const int y0 = top + (sections - 1 - k) * kStripHeight;
+    cv::rectangle(img, cv::Point(kMarginLeft, y0 + 2),
+                  cv::Point(kMarginLeft + int(nbins) * r.px_per_bin - 1, y0 + kStripHeight - 3),
+                  cv::Scalar(225, 225, 225), cv::FILLED);
+    cv::putText(img, "S" + std::to_string(k), cv::Point(4, y0 + kStripHeight - 4), font, 0.4, ink,
+                1, cv::LINE_AA);
+  }
+  for (const SprayedStretch &s : sprayed) {
+    if (s.end_m < lo_m || s.start_m > hi_m)
+      continue;
+    const int y0 = top + (sections - 1 - s.section) * kStripHeight;
+    cv::rectangle(img, cv::Point(x_of_m(s.start_m), y0 + 2),
+                  cv::Point(std::max(x_of_m(s.start_m), x_of_m(s.end_m) - 1), y0 + kStripHeight - 3),
+                  cv::Scalar(40, 120, 20), cv::FILLED);
+  }
+  return img;
+}
+
+namespace
+{
+
+void write_picture(const std::string &path, const cv::Mat &img)
+{
   bool ok = false;
   try {
     ok = cv::imwrite(path, img);
@@ -432,6 +481,35 @@ void RowMap::write_png(const std::string &path, const std::vector<TreeRecord> &t
   if (!ok)
     throw std::runtime_error("row map: cannot write " + path +
                              " (no such directory, no permission or an unknown extension)");
+}
+
+} // namespace
+
+void RowMap::write_png(const std::string &path, const std::vector<TreeRecord> &trees,
+                       const RowMapRenderParams &r) const
+{
+  if (bins_.empty())
+    throw std::runtime_error("row map: nothing to write to " + path + ": no frame added a bin");
+  write_picture(path, render(trees, r));
+}
+
+void RowMap::write_png(const std::string &path, const std::vector<TreeRecord> &trees,
+                       const std::vector<SprayedStretch> &sprayed, int sections,
+                       const RowMapRenderParams &r) const
+{
+  if (bins_.empty())
+    throw std::runtime_error("row map: nothing to write to " + path + ": no frame added a bin");
+  write_picture(path, render_with_timeline(trees, sprayed, sections, r));
+}
+
+std::string with_extension(const std::string &path, const std::string &extension)
+{
+  std::string out = path;
+  const std::size_t slash = out.find_last_of('/');
+  const std::size_t dot = out.find_last_of('.');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash))
+    out.erase(dot);
+  return out + extension;
 }
 
 } // namespace treestereo

@@ -5,6 +5,8 @@
 #include <climits>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
+#include <map>
 #include <stdexcept>
 
 namespace treestereo {
@@ -321,6 +323,31 @@ std::vector<SectionCommand> SprayPlanner::tick(std::int64_t running_ns)
 std::vector<SectionCommand> SprayPlanner::finish()
 {
   return due(0, true);
+}
+
+std::vector<SprayedStretch> sprayed_stretches(const std::vector<SectionCommand> &commands)
+{
+  std::map<int, std::vector<const SectionCommand *>> by_section;
+  for (const SectionCommand &c : commands)
+    by_section[c.section].push_back(&c);
+  std::vector<SprayedStretch> out;
+  for (auto &[section, cmds] : by_section) {
+    std::stable_sort(cmds.begin(), cmds.end(), [](const SectionCommand *a, const SectionCommand *b) {
+      return a->at_ns < b->at_ns;
+    });
+    bool open = false;
+    double from = 0;
+    for (const SectionCommand *c : cmds) {
+      if (c->on && !open)
+        from = c->position_m;
+      else if (!c->on && open)
+        out.push_back({section, std::min(from, c->position_m), std::max(from, c->position_m)});
+      open = c->on;
+    }
+    if (open)
+      out.push_back({section, from, std::numeric_limits<double>::infinity()});
+  }
+  return out;
 }
 
 } // namespace treestereo

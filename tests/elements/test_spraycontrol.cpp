@@ -6,6 +6,10 @@
  *   + speed * t)
  *
  * and the fail-safe is driven by cranking the test clock past hold-time. */
+// OpenCV before gstcheck: gstcheck's fail macros clash with names in OpenCV's headers.
+#include "treestereo/rowmap.hpp"
+#include <opencv2/imgcodecs.hpp>
+
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -16,6 +20,7 @@
 #include <gst/check/gstharness.h>
 #include <gst/check/gsttestclock.h>
 #include <gst/treestereo/treestereo-meta.h>
+#include <glib/gstdio.h>
 
 namespace {
 
@@ -391,6 +396,60 @@ GST_START_TEST(test_section_message_round_trip)
 }
 GST_END_TEST;
 
+/* timeline-location: at EOS, the row map with one strip per section under it, the valve's open
+ * stretches drawn where the canopy is; an unwritable location is a RESOURCE error naming it. */
+GST_START_TEST(test_timeline_picture_at_eos)
+{
+  gchar *dir = g_dir_make_tmp("spraycontrol-XXXXXX", nullptr);
+  const std::string png = std::string(dir) + "/timeline.png";
+  const Canopy canopy = {{1.0, 1.6}, {2.2, 2.8}};
+  Harness r = harness(("timeline-location=" + png).c_str());
+  for (int i = 0; i <= 40; i++) {
+    const GstClockTime t = GstClockTime(i) * kFrame;
+    fail_unless_equals_int(gst_harness_push(r.h, frame(t, kP0 + 0.1 * i, canopy)), GST_FLOW_OK);
+    gst_buffer_unref(gst_harness_pull(r.h));
+  }
+  fail_unless(gst_harness_push_event(r.h, gst_event_new_eos()));
+  harness_free(r);
+  const cv::Mat img = cv::imread(png, cv::IMREAD_COLOR);
+  fail_if(img.empty(), "no picture at %s", png.c_str());
+  // Four sections of the default map: four strips under the map; the middle of the first
+  // canopy is sprayed in the lowest strip, the middle of the gap is not.
+  const int strips_top = img.rows - 4 * treestereo::RowMap::kStripHeight;
+  const int y0 = strips_top + 3 * treestereo::RowMap::kStripHeight + treestereo::RowMap::kStripHeight / 2;
+  int open_cols = 0;
+  for (int x = treestereo::RowMap::kMarginLeft; x < img.cols - treestereo::RowMap::kMarginRight; x++) {
+    const cv::Vec3b c = img.at<cv::Vec3b>(y0, x);
+    if (c == cv::Vec3b(40, 120, 20))
+      open_cols++;
+  }
+  // Two canopies of 0.6 m at 8 px per 5 cm bin: about 2 x 96 px open.
+  fail_unless(open_cols > 150 && open_cols < 240, "%d columns open in section 0", open_cols);
+  g_unlink(png.c_str());
+  g_rmdir(dir);
+  g_free(dir);
+
+  // A location in a directory that does not exist.
+  Harness bad = harness("timeline-location=/nonexistent-dir/timeline.png");
+  for (int i = 0; i <= 5; i++) {
+    fail_unless_equals_int(gst_harness_push(bad.h, frame(GstClockTime(i) * kFrame, kP0 + 0.1 * i, canopy)),
+                           GST_FLOW_OK);
+    gst_buffer_unref(gst_harness_pull(bad.h));
+  }
+  gst_harness_push_event(bad.h, gst_event_new_eos());
+  GstMessage *m = gst_bus_pop_filtered(bad.bus, GST_MESSAGE_ERROR);
+  fail_unless(m != nullptr, "no error for an unwritable timeline-location");
+  GError *err = nullptr;
+  gst_message_parse_error(m, &err, nullptr);
+  fail_unless(g_error_matches(err, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_WRITE), "%s",
+              err->message);
+  fail_unless(strstr(err->message, "/nonexistent-dir/timeline.png") != nullptr, "%s", err->message);
+  g_error_free(err);
+  gst_message_unref(m);
+  harness_free(bad);
+}
+GST_END_TEST
+
 static Suite *spraycontrol_suite(void)
 {
   Suite *s = suite_create("spraycontrol");
@@ -404,6 +463,7 @@ static Suite *spraycontrol_suite(void)
   tcase_add_test(tc, test_fail_safe_on_a_gap_in_the_running_times);
   tcase_add_test(tc, test_bad_section_heights_is_a_named_error);
   tcase_add_test(tc, test_section_message_round_trip);
+  tcase_add_test(tc, test_timeline_picture_at_eos);
   return s;
 }
 

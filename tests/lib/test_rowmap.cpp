@@ -253,6 +253,40 @@ TEST(RowMap, PngWrittenWithItsSize)
   std::remove(path.c_str());
 }
 
+// The valve timeline under the map: one strip per section on the map's travel axis, green where
+// the valve is open; a stretch left open runs to the map's end.
+TEST(RowMap, ValveTimelineUnderTheMap)
+{
+  const RowMap map = build();
+  const double lo = double(map.first_bin()) * 0.05, hi = double(map.last_bin() + 1) * 0.05;
+  const std::vector<SprayedStretch> sprayed = {
+      {0, lo + 0.5, lo + 1.0}, {1, lo + 0.2, lo + 0.3},
+      {3, lo + 1.5, std::numeric_limits<double>::infinity()}};
+  const cv::Mat img = map.render_with_timeline(trees(), sprayed, 4);
+  const cv::Mat plain = map.render(trees());
+  ASSERT_EQ(img.cols, plain.cols);
+  ASSERT_EQ(img.rows, plain.rows + RowMap::kTimelineTop + 4 * RowMap::kStripHeight);
+  EXPECT_EQ(cv::norm(img(cv::Rect(0, 0, plain.cols, plain.rows)), plain, cv::NORM_INF), 0.0);
+  auto x_of = [&](double m) { return RowMap::kMarginLeft + int(std::lround((m / 0.05 - double(map.first_bin())) * 8)); };
+  auto y_of = [&](int section) {
+    return plain.rows + RowMap::kTimelineTop + (3 - section) * RowMap::kStripHeight +
+           RowMap::kStripHeight / 2;
+  };
+  const cv::Vec3b open(40, 120, 20), closed(225, 225, 225);
+  EXPECT_EQ(img.at<cv::Vec3b>(y_of(0), x_of(lo + 0.75)), open);
+  EXPECT_EQ(img.at<cv::Vec3b>(y_of(0), x_of(lo + 1.2)), closed);
+  EXPECT_EQ(img.at<cv::Vec3b>(y_of(1), x_of(lo + 0.25)), open);
+  EXPECT_EQ(img.at<cv::Vec3b>(y_of(1), x_of(lo + 0.75)), closed);
+  EXPECT_EQ(img.at<cv::Vec3b>(y_of(2), x_of(lo + 0.75)), closed);
+  EXPECT_EQ(img.at<cv::Vec3b>(y_of(3), x_of(hi - 0.05)), open);
+  EXPECT_EQ(img.at<cv::Vec3b>(y_of(3), x_of(lo + 1.2)), closed);
+
+  EXPECT_THROW(map.render_with_timeline({}, sprayed, 3), std::runtime_error); // section 3
+  EXPECT_THROW(map.render_with_timeline({}, {{0, 1.0, 0.5}}, 1), std::runtime_error);
+  EXPECT_EQ(with_extension("out/demo-sections.jsonl", ".png"), "out/demo-sections.png");
+  EXPECT_EQ(with_extension("a.b/map", ".png"), "a.b/map.png");
+}
+
 TEST(RowMap, ErrorsNameThePath)
 {
   const RowMap map = build(400);

@@ -344,6 +344,26 @@ TEST(Spray, RepeatedTimestampKeepsItsSlices)
   EXPECT_NEAR(double(c[0].at_ns), 100e6 + (0.0 + 1.5 - 0.1) * 1e9 - 160e6, 2);
 }
 
+TEST(Spray, SprayedStretchesFromCommands)
+{
+  // Section 1 opens at 1.0, changes rate, closes at 1.5, opens at 2.0 and is left open;
+  // section 0 opens at 0.5 and closes at 0.9 (posted out of time order).
+  const std::vector<SectionCommand> cmds = {
+      {1, true, 1.0, 100, 1.0}, {0, false, 0.0, 90, 0.9}, {1, true, 0.5, 120, 1.2},
+      {1, false, 0.0, 150, 1.5}, {0, true, 1.0, 50, 0.5}, {1, true, 1.0, 200, 2.0}};
+  const std::vector<SprayedStretch> s = sprayed_stretches(cmds);
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_EQ(s[0].section, 0);
+  EXPECT_DOUBLE_EQ(s[0].start_m, 0.5);
+  EXPECT_DOUBLE_EQ(s[0].end_m, 0.9);
+  EXPECT_EQ(s[1].section, 1);
+  EXPECT_DOUBLE_EQ(s[1].start_m, 1.0);
+  EXPECT_DOUBLE_EQ(s[1].end_m, 1.5);
+  EXPECT_DOUBLE_EQ(s[2].start_m, 2.0);
+  EXPECT_TRUE(std::isinf(s[2].end_m));
+  EXPECT_TRUE(sprayed_stretches({}).empty());
+}
+
 TEST(Spray, ParamsValidated)
 {
   SprayParams p;

@@ -65,6 +65,17 @@ struct RowMapCell {
   double fill = 0;       // share of the cell covered by canopy (0..1)
 };
 
+// `path` with its extension (after the last dot of its last component, if any) replaced by
+// `extension` (with its dot): the picture beside a CSV or a JSON-lines file.
+std::string with_extension(const std::string &path, const std::string &extension);
+
+// A stretch along the row a nozzle section sprays (world x, m, start_m < end_m), for the valve
+// timeline under the map's picture (spray.hpp's sprayed_stretches() makes them from commands).
+struct SprayedStretch {
+  int section = 0; // 0 = the lowest
+  double start_m = 0, end_m = 0; // end_m may be +infinity: open to the end of the data
+};
+
 struct RowMapRenderParams {
   int px_per_bin = 8;        // width of a bin (px)
   double px_per_m_height = 160; // height scale (px per m above the ground)
@@ -106,11 +117,24 @@ public:
   cv::Mat render(const std::vector<TreeRecord> &trees = {},
                  const RowMapRenderParams &render = RowMapRenderParams()) const;
   cv::Size render_size(const RowMapRenderParams &render = RowMapRenderParams()) const;
+
+  // render() with the valve timeline under it: one strip per section (the highest on top, as
+  // the bands), on the map's travel axis, dark where the valve is open. `sections`: how many
+  // strips (at least every stretch's section + 1). Adds kTimelineTop + sections * kStripHeight
+  // rows at the bottom.
+  cv::Mat render_with_timeline(const std::vector<TreeRecord> &trees,
+                               const std::vector<SprayedStretch> &sprayed, int sections,
+                               const RowMapRenderParams &render = RowMapRenderParams()) const;
+  static constexpr int kTimelineTop = 24, kStripHeight = 16;
   static constexpr int kMarginLeft = 70, kMarginRight = 20, kMarginTop = 50, kMarginBottom = 80;
 
   // render() written with cv::imwrite (the format from the extension). Throws std::runtime_error
   // naming the path when the map is empty or the file cannot be written.
   void write_png(const std::string &path, const std::vector<TreeRecord> &trees = {},
+                 const RowMapRenderParams &render = RowMapRenderParams()) const;
+  // The same with the valve timeline (render_with_timeline()).
+  void write_png(const std::string &path, const std::vector<TreeRecord> &trees,
+                 const std::vector<SprayedStretch> &sprayed, int sections,
                  const RowMapRenderParams &render = RowMapRenderParams()) const;
 
 private:

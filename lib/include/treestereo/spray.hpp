@@ -90,6 +90,12 @@ struct SectionCommand {
   double position_m = 0;   // world position of the canopy slice it is for
 };
 
+// The stretches each section sprays, from its commands in time order: from an opening's
+// position_m to the next closing's (a section left open at the end: end_m = +infinity). Rate
+// changes of an open valve continue the stretch; fail-safe commands (no canopy position) are
+// left out by the caller.
+std::vector<SprayedStretch> sprayed_stretches(const std::vector<SectionCommand> &commands);
+
 class SprayPlanner {
 public:
   explicit SprayPlanner(const SprayParams &p); // validates
