@@ -5,8 +5,9 @@
 # line of measurements per stereo frame and one per tree as it leaves the view, and writes
 # out/demo.jsonl (one JSON object per frame), out/demo.mp4 (the annotated side-by-side video),
 # out/demo-trees.jsonl (one record per tree), out/demo-row-map.csv + .png (the row's canopy
-# map: travel along x, height along y, colour = distance) and out/demo-sections.jsonl (the valve
-# commands of the nozzle sections, timed for the travel). Extra arguments go to
+# map: travel along x, height along y, colour = distance), out/demo-sections.jsonl (the valve
+# commands of the nozzle sections, timed for the travel) and out/demo-sections.png (the row map
+# with each section's valve timeline under it). Extra arguments go to
 # treestereo-measure (see build/tools/treestereo-measure --help).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,4 +22,4 @@ mkdir -p out
   --sections out/demo-sections.jsonl "$@"
 echo "treestereo: measurements in out/demo.jsonl, annotated video in out/demo.mp4," \
   "tree records in out/demo-trees.jsonl, row map in out/demo-row-map.csv and .png," \
-  "nozzle-section commands in out/demo-sections.jsonl"
+  "nozzle-section commands in out/demo-sections.jsonl, valve timeline in out/demo-sections.png"

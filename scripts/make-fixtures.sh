@@ -8,6 +8,9 @@
 #   sweep-1296: issue 7's accuracy conditions at the size its targets are for: 5 pairs 1296x972
 #     (JPEG quality 90), pair k (0..4) is tree seed k+1 with its trunk at 1.8 + 0.1 k m; one
 #     calibration (the rig does not change), truth.json with the frames of the five renders.
+#   seq-driveby: a drive-by along the orchard row at 2 m/s (7 fps), seed 4, trunks at 2.0 m, gaps
+#     0.15-0.8 m, the canopies of trees 1 and 2 grown into each other; 16 pairs 640x480, JPEG
+#     quality 80: five trees pass wholly through the view.
 # FIXTURES_OUT=DIR writes elsewhere (the test that checks reproducibility does).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,12 +18,14 @@ build=${TREESTEREO_BUILD_DIR:-build}
 synth="$build/tools/treestereo-synth"
 [ -x "$synth" ] || { echo "make-fixtures: build first (scripts/build.sh)" >&2; exit 1; }
 out=${FIXTURES_OUT:-tests/fixtures}
-rm -rf "$out/seq-static" "$out/seq-moving" "$out/seq-orchard" "$out/sweep-1296"
+rm -rf "$out/seq-static" "$out/seq-moving" "$out/seq-orchard" "$out/seq-driveby" "$out/sweep-1296"
 "$synth" -o "$out/seq-static" --seed 1 --distance 2.0 --size 640x480 --frames 8 --format jpg
 "$synth" -o "$out/seq-moving" --seed 7 --distance 1.8 --speed 0.5 --fps 7 --light 0.8 \
   --size 640x480 --frames 8 --format jpg
 "$synth" -o "$out/seq-orchard" --scene orchard --seed 3 --distance 2.0 --speed 0.3 --fps 7 \
   --light 1.0 --size 640x480 --frames 8 --format jpg --quality 80
+"$synth" -o "$out/seq-driveby" --scene orchard --seed 4 --distance 2.0 --speed 2 --fps 7 \
+  --size 640x480 --frames 16 --format jpg --quality 80 --row-gap 0.15:0.8 --touching-pair 1
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 mkdir -p "$out/sweep-1296"
