@@ -183,6 +183,18 @@ std::vector<TreeTracker::Open> TreeTracker::open() const
   return out;
 }
 
+std::pair<double, double> TreeTracker::robust_ends(const Track &k, double lo, double hi) const
+{
+  // Mode Tree: an end seen off the image edge in two frames or more is the median of those,
+  // which one frame of stray points across a gap does not move.
+  std::pair<double, double> e(lo, hi);
+  if (params_.mode == CanopyMode::Tree && k.starts.size() >= 2)
+    e.first = median_of(k.starts);
+  if (params_.mode == CanopyMode::Tree && k.ends.size() >= 2)
+    e.second = median_of(k.ends);
+  return e;
+}
+
 std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
 {
   check_frame(f);
@@ -208,8 +220,15 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
                s.lo_mm <= f.left_slope * s.near_mm + params_.edge_margin_mm,
                s.hi_mm >= f.right_slope * s.near_mm - params_.edge_margin_mm};
   }
+  // Each track's extent to match against. Mode Tree: an end seen off the image edge in two
+  // frames or more is its median, not the last frame's: a frame whose segment reached across a
+  // gap (stray points bridging it) would otherwise lend the tree the next one's canopy, and the
+  // next tree entering the view would be taken for more of it.
+  std::vector<std::pair<double, double>> extent(nt);
+  for (std::size_t t = 0; t < nt; ++t)
+    extent[t] = robust_ends(tracks_[t], tracks_[t].lo_mm, tracks_[t].hi_mm);
   auto ov = [&](std::size_t i, std::size_t t) {
-    return overlap(segs[i].lo, segs[i].hi, tracks_[t].lo_mm - tol, tracks_[t].hi_mm + tol);
+    return overlap(segs[i].lo, segs[i].hi, extent[t].first - tol, extent[t].second + tol);
   };
 
   // Which segments each track is seen in.
@@ -222,7 +241,7 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
       const bool joined = f.segments[i].joined_lo || f.segments[i].joined_hi;
       std::vector<std::size_t> over;
       for (std::size_t t = 0; t < nt; ++t)
-        if (ov(i, t) > (joined ? 0.5 * std::min(tracks_[t].hi_mm - tracks_[t].lo_mm,
+        if (ov(i, t) > (joined ? 0.5 * std::min(extent[t].second - extent[t].first,
                                                 segs[i].hi - segs[i].lo)
                                : 0.0))
           over.push_back(t);
@@ -410,9 +429,9 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
   // trailing edge at their front depth) or were lost.
   std::vector<Track> done, keep;
   for (Track &k : tracks_) {
-    const bool behind =
-        k.missed > 0 && (direction_ > 0 ? k.max_hi_mm < pos + f.left_slope * k.near_mm
-                                        : k.min_lo_mm > pos + f.right_slope * k.near_mm);
+    const auto [lo, hi] = robust_ends(k, k.min_lo_mm, k.max_hi_mm);
+    const bool behind = k.missed > 0 && (direction_ > 0 ? hi < pos + f.left_slope * k.near_mm
+                                                        : lo > pos + f.right_slope * k.near_mm);
     if (behind) {
       done.push_back(std::move(k));
     } else if (k.missed > params_.grace_frames) {
@@ -486,7 +505,7 @@ std::vector<TreeRecord> TreeTracker::emit(std::vector<Track> &done)
     previous_ = r;
     has_previous_ = true;
     if (!k.lost) { // a lost tree may come back into sight: it is then a new track
-      recent_.emplace_back(k.min_lo_mm, k.max_hi_mm);
+      recent_.push_back(robust_ends(k, k.min_lo_mm, k.max_hi_mm));
       if (recent_.size() > kRecent)
         recent_.erase(recent_.begin());
     }

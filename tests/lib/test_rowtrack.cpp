@@ -44,6 +44,10 @@ struct Sim {
   // Mode Tree: touching canopies are one segment until both show this much in view (mm), then
   // two segments cut at the contact (a valley of the top line: joined_hi / joined_lo). < 0: off.
   double valley_from_mm = -1;
+  // Stray points bridge the gap after this tree in the frames it is in view with the next one
+  // entering (the next tree's canopy less than 300 mm in view): its segment runs on to the next
+  // tree's (seen as one).
+  int bridge_tree = -1;
 };
 
 struct SimFrame {
@@ -154,6 +158,13 @@ std::vector<SimFrame> simulate(const std::vector<TrueTree> &trees, Sim sim)
       }
       segs.push_back(v);
     }
+    for (std::size_t i = 0; i + 1 < segs.size(); ++i)
+      if (sim.bridge_tree >= 0 && segs[i].tree == sim.bridge_tree &&
+          segs[i + 1].tree == sim.bridge_tree + 1 && segs[i + 1].hi - segs[i + 1].lo < 300) {
+        segs[i].hi = segs[i + 1].hi;
+        segs[i].b = segs[i + 1].b;
+        segs.erase(segs.begin() + std::ptrdiff_t(i) + 1);
+      }
     int front = -1;
     for (std::size_t i = 0; i < segs.size(); ++i) {
       RowSegment r;
@@ -472,6 +483,26 @@ TEST(TreeTracker, TouchingCrownsCutAtTheirValleyAreTwoTrees)
       EXPECT_DOUBLE_EQ(r.width_m, row[i].width_m());
     }
     EXPECT_NEAR(got[1].record.gap_m, -0.05, 0.03); // the crowns overlap by 50 mm
+  }
+}
+
+// Stray points bridge the 800 mm gap between trees 1 and 2 while tree 2 enters the view: tree 1
+// keeps its own extent (its end seen off the edge before), tree 2 gets its own record.
+TEST(TreeTracker, AFrameBridgingAGapDoesNotJoinTwoTrees)
+{
+  for (double speed : {0.5, 1.0, 2.0}) {
+    SCOPED_TRACE("speed " + std::to_string(speed));
+    Sim sim;
+    sim.speed_m_s = speed;
+    sim.bridge_tree = 1;
+    const auto frames = simulate(kRow, sim);
+    int bridged = 0;
+    for (const SimFrame &f : frames)
+      for (const RowSegment &s : f.frame.segments)
+        bridged += s.lo_mm + f.frame.position_mm < 2650 && s.hi_mm + f.frame.position_mm > 3450;
+    ASSERT_GT(bridged, 0) << "no frame bridges the gap";
+    TreeTracker tracker;
+    expect_row(run(tracker, frames), frames);
   }
 }
 

@@ -16,13 +16,19 @@
 //    out on an edge ray, so a segment that runs out of the view always tests cut; a segment
 //    whose deep limb ends just inside the edge may test cut too, which only costs that frame's
 //    end for start_m / end_m.
-//  - Association: each segment's world extent against each track's last world extent, widened
-//    by match_tolerance_mm (travel error, sparse points at the limbs); pairs taken one to one,
-//    largest overlap first. A segment no track takes starts a new track (ids count up from 1)
-//    unless it overlaps a track already taken this frame: mode Tree counts it as a split of that
-//    tree (a sparse frame), mode Row as more of the same canopy. One segment over two tracks:
-//    mode Tree keeps both tracks alive without updating them (two trees seen as one: neither's
-//    extent nor the measurement is trusted); mode Row merges them (touching canopies are one).
+//  - Association: each segment's world extent against each track's world extent, widened by
+//    match_tolerance_mm (travel error, sparse points at the limbs); pairs taken one to one,
+//    largest overlap first. A track's extent is the last frame's, except (mode Tree) an end seen
+//    off the image edge in two frames or more, which is their median: one frame whose segment
+//    reached across a gap (stray points bridging it) does not lend a tree its neighbour's
+//    canopy. A segment no track takes starts a new track (ids count up from 1) unless it
+//    overlaps a track already taken this frame: mode Tree counts it as a split of that tree (a
+//    sparse frame), mode Row as more of the same canopy; but a segment cut from the taken one at
+//    a valley (RowSegment::joined_lo / joined_hi: crowns grown into each other) is a tree of its
+//    own. One segment over two tracks: mode Tree keeps both tracks alive without updating them
+//    (two trees seen as one: neither's extent nor the measurement is trusted; a segment cut at a
+//    valley counts a neighbour's track only when it covers half of it); mode Row merges them
+//    (touching canopies are one).
 //  - Fusion (median over frames): height from the frames whose metrics are clipped neither at
 //    the top nor the bottom, width from those clipped neither left nor right, distance,
 //    thickness, bands and confidence from the frames fully in view (no clipped side). start_m
@@ -167,6 +173,9 @@ private:
     bool lost = false;
   };
   std::vector<TreeRecord> emit(std::vector<Track> &done);
+  // The track's ends along the row (world mm): in mode Tree the medians of its ends seen off
+  // the image edge (two or more), else `lo` / `hi`.
+  std::pair<double, double> robust_ends(const Track &k, double lo, double hi) const;
 
   TrackerParams params_;
   std::vector<Track> tracks_;
