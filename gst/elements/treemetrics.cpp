@@ -13,8 +13,8 @@
  * - the rig's travel since the previous frame and its position since the stream's start
  *   (`travel-m`, `position-m`, `travel-source` in the message and the meta): #treemetrics:speed
  *   > 0 (wheel odometry, GNSS) gives speed x the PTS difference; otherwise, with
- *   #treemetrics:travel, lib's estimate_motion() between the previous frame's views (grey
- *   copies) and this one's. A frame without a travel (the first, a failed estimate) says
+ *   #treemetrics:travel, lib's Odometer (estimate_motion() from a key frame up to 300 mm back,
+ *   grey copies of its views) to this one's. A frame without a travel (the first, a failed estimate) says
  *   `travel-source=none` with travel 0 and keeps the position.
  * - with stereodepth's #GstTreeStereoCanopyMeta and #treemetrics:trees, lib's TreeTracker follows
  *   the trees along the row with the meta's segments; each tree leaving the view (and, at EOS,
@@ -419,9 +419,13 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
     OdometerParams op;
     // Views up to 800 px wide are tracked at full size: at half size the tracks of 640x480
     // views read the travel ~5 % short on the orchard (the canopy's points alone), for the
-    // same cost as half size at 1296x972.
-    if (left.cols <= 800)
+    // same cost as half size at 1296x972. They are measured from the previous frame: their
+    // coarser depth makes an estimate over a key frame's longer span worse, not better
+    // (docs/results.md, "Travel from key frames").
+    if (left.cols <= 800) {
       op.travel.scale = 1.0;
+      op.key_span_mm = 0;
+    }
     a.odometer = std::make_unique<Odometer>(op);
   }
   // No points (no points meta): nothing to measure from, but the views serve the next frame.
