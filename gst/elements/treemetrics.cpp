@@ -14,8 +14,8 @@
  *   (`travel-m`, `position-m`, `travel-source` in the message and the meta): #treemetrics:speed
  *   > 0 (wheel odometry, GNSS) gives speed x the PTS difference; otherwise, with
  *   #treemetrics:travel, lib's Odometer (estimate_motion() from a key frame up to 300 mm back,
- *   grey copies of its views) to this one's. A frame without a travel (the first, a failed estimate) says
- *   `travel-source=none` with travel 0 and keeps the position.
+ *   grey copies of its views) to this one's. A frame without a travel (the first, a failed
+ *   estimate) says `travel-source=none` with travel 0 and keeps the position.
  * - with stereodepth's #GstTreeStereoCanopyMeta and #treemetrics:trees, lib's TreeTracker follows
  *   the trees along the row with the meta's segments; each tree leaving the view (and, at EOS,
  *   each one still in view, before EOS goes on) is posted as a `treestereo-tree` element message
