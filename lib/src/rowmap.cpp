@@ -467,6 +467,64 @@ cv::Mat RowMap::render_with_timeline(const std::vector<TreeRecord> &trees,
   return img;
 }
 
+void RowMap::draw_strip(cv::Mat &strip, double from_m, double to_m, double now_m,
+                        double dmin, double dmax) const
+{
+  if (strip.empty() || strip.type() != CV_8UC3)
+    throw std::runtime_error("row map strip: an empty image or not 8-bit BGR");
+  if (!(from_m < to_m) || !std::isfinite(from_m) || !std::isfinite(to_m) || !std::isfinite(now_m))
+    throw std::runtime_error("row map strip: the travel window must have from_m < to_m");
+  const int nb = n_bands();
+  const double m_per_px = (to_m - from_m) / strip.cols;
+  if (dmin == 0 && dmax == 0) {
+    dmin = std::numeric_limits<double>::infinity();
+    dmax = -dmin;
+    for (auto it = bins_.lower_bound(long(std::floor(from_m * 1000.0 / params_.bin_mm)));
+         it != bins_.end() && double(it->first) * params_.bin_mm * kMmToM <= to_m; ++it)
+      for (const RowMapCell &c : it->second.cells)
+        if (c.present) {
+          dmin = std::min(dmin, c.distance_m);
+          dmax = std::max(dmax, c.distance_m);
+        }
+    if (!std::isfinite(dmin))
+      dmin = dmax = 0;
+  }
+  if (dmax - dmin < 0.05) {
+    const double mid = 0.5 * (dmin + dmax);
+    dmin = std::max(0.0, mid - 0.025);
+    dmax = dmin + 0.05;
+  }
+  cv::Mat ramp(1, 256, CV_8U), lut;
+  for (int i = 0; i < 256; ++i)
+    ramp.at<uchar>(0, i) = uchar(i);
+  cv::applyColorMap(ramp, lut, cv::COLORMAP_TURBO);
+  strip.setTo(cv::Scalar(0, 0, 0));
+  for (int x = 0; x < strip.cols; ++x) {
+    const double w_m = from_m + (x + 0.5) * m_per_px;
+    const auto it = bins_.find(long(std::floor(w_m * 1000.0 / params_.bin_mm)));
+    if (it == bins_.end())
+      continue;
+    for (int k = 0; k < nb; ++k) {
+      const RowMapCell &c = it->second.cells[std::size_t(k)];
+      if (!c.seen)
+        continue;
+      cv::Vec3b colour(60, 60, 60);
+      if (c.present) {
+        const int i = std::clamp(int(std::lround((c.distance_m - dmin) / (dmax - dmin) * 255.0)),
+                                 0, 255);
+        colour = lut.at<cv::Vec3b>(0, i);
+      }
+      const int y0 = strip.rows * (nb - 1 - k) / nb, y1 = strip.rows * (nb - k) / nb;
+      for (int y = y0; y < y1; ++y)
+        strip.at<cv::Vec3b>(y, x) = colour;
+    }
+  }
+  const int xn = int(std::lround((now_m - from_m) / m_per_px));
+  if (xn >= 0 && xn < strip.cols)
+    cv::line(strip, cv::Point(xn, 0), cv::Point(xn, strip.rows - 1), cv::Scalar(255, 255, 255),
+             std::max(1, strip.rows / 40));
+}
+
 namespace
 {
 

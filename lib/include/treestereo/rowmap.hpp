@@ -128,6 +128,14 @@ public:
   static constexpr int kTimelineTop = 24, kStripHeight = 16;
   static constexpr int kMarginLeft = 70, kMarginRight = 20, kMarginTop = 50, kMarginBottom = 80;
 
+  // The map as a strip under a live view (treeoverlay's draw-map): travel from from_m to to_m
+  // across `strip`'s width (CV_8UC3, BGR, drawn over), the bands from bottom to top over its
+  // height; cells as render() colours them (distance over [distance_min_m, distance_max_m],
+  // both 0: from the cells in the window), `now_m` (the camera's position) a white line.
+  // Throws std::runtime_error on an empty strip or from_m >= to_m.
+  void draw_strip(cv::Mat &strip, double from_m, double to_m, double now_m,
+                  double distance_min_m = 0, double distance_max_m = 0) const;
+
   // render() written with cv::imwrite (the format from the extension). Throws std::runtime_error
   // naming the path when the map is empty or the file cannot be written.
   void write_png(const std::string &path, const std::vector<TreeRecord> &trees = {},
