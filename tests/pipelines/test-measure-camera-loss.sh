@@ -1,0 +1,146 @@
+#!/usr/bin/env bash
+# A camera that drops out and comes back (treecamerasrc in treestereo-measure): two fake GigE
+# Vision cameras (fake-gv-cameras.sh); the right one is killed (SIGKILL) for 3 s and started
+# again, twice, while the tool measures. Then it is killed a third time and the tool gets SIGINT
+# while that camera is missing (reconnect attempts going on). Checked:
+#   - the tool keeps running through both gaps;
+#   - measured pairs resume within 2 s of each return (wall time from the camera's restart to the
+#     first new pair line in the --json output, polled every 50 ms);
+#   - the pairs' pts_ns go on from where they were: the first pair after a gap is at least 2.5 s
+#     (and at most 15 s) after the last one before it, not back at 0;
+#   - the JSON shows each gap: camera-lost lines for the right camera (one at the loss, then one
+#     per second) and one camera-back line per return;
+#   - stderr has the WARNING naming the camera;
+#   - after SIGINT during the third gap: exit status 0 within 10 s, every JSON line parses;
+#   - spraycontrol (--sections): its fail-safe sets the sections to the fallback state in a gap
+#     once it has planned (reported; required only when it planned before the first gap).
+# The fake images are not trees: this checks the supervision and the pairing, not measurements.
+set -uo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+measure=${1:?usage: test-measure-camera-loss.sh TREESTEREO_MEASURE}
+. "$here/fake-gv-cameras.sh"
+fake_cameras_enter_netns "$@"
+for e in bayer2rgb treecamerasrc; do
+  gst-inspect-1.0 "$e" >/dev/null 2>&1 || { echo "SKIP: GStreamer element $e is missing"; exit 77; }
+done
+fake_cameras_start
+tmp=$fake_cameras_tmp
+gst-launch-1.0 -q treetestsrc num-buffers=1 calibration-out="$tmp/rig.yml" ! \
+  video/x-raw,width=512,height=512 ! fakesink || { echo "FAIL: no calibration"; exit 1; }
+set -- $fake_camera_pids
+left_pid=$1
+right_pid=$2
+
+now() { date +%s.%N; }
+pairs() { grep -c '"frame"' "$tmp/r.jsonl" 2>/dev/null || true; }
+fail() {
+  echo "--- tool stderr:"; cat "$tmp/run.log"
+  echo "--- events:"; cat "$tmp/events.log"
+  echo "FAIL: $*"
+  [ -n "${mpid:-}" ] && kill -KILL "$mpid" 2>/dev/null
+  exit 1
+}
+# Waits (at most $2 s) until the JSON holds more than $1 pair lines; prints the wall time.
+wait_pairs_above() {
+  local n=$1 limit=$2 t0 t
+  t0=$(now)
+  while :; do
+    t=$(now)
+    if [ "$(pairs)" -gt "$n" ]; then echo "$t"; return 0; fi
+    kill -0 "$mpid" 2>/dev/null || return 1
+    awk -v a="$t" -v b="$t0" -v l="$limit" 'BEGIN { exit !(a - b > l) }' && return 1
+    sleep 0.05
+  done
+}
+restart_right() {
+  arv-fake-gv-camera-0.8 -i 127.0.0.2 >/dev/null 2>&1 &
+  right_pid=$!
+  fake_camera_pids="$left_pid $right_pid"
+}
+kill_right() {
+  kill -KILL "$right_pid"
+  wait "$right_pid" 2>/dev/null
+}
+
+: >"$tmp/events.log"
+"$measure" --camera-left 127.0.0.1 --camera-right 127.0.0.2 --calibration "$tmp/rig.yml" \
+  --camera-caps video/x-bayer,framerate=10/1 --latency 250 --max-skew 75 --pair-queue 20 \
+  --camera-timeout 1000 --reconnect 250 --sections "$tmp/sections.jsonl" \
+  --json "$tmp/r.jsonl" --quiet >/dev/null 2>"$tmp/run.log" &
+mpid=$!
+wait_pairs_above 10 40 >/dev/null || fail "fewer than 10 pairs in 40 s before the first gap"
+
+resume=()
+for k in 1 2; do
+  kill_right
+  t_kill=$(now)
+  before=$(pairs)
+  echo "gap $k: killed at $t_kill after $before pairs" >>"$tmp/events.log"
+  sleep 3
+  kill -0 "$mpid" 2>/dev/null || fail "the tool ended during gap $k"
+  restart_right
+  t_back=$(now)
+  n_back=$(pairs)
+  t_pair=$(wait_pairs_above "$n_back" 15) || fail "no pair within 15 s of the camera's return $k"
+  r=$(awk -v a="$t_pair" -v b="$t_back" 'BEGIN { printf "%.2f", a - b }')
+  resume+=("$r")
+  echo "gap $k: camera back at $t_back, first new pair at $t_pair: resumed after $r s" \
+    >>"$tmp/events.log"
+  # a few pairs before the next gap
+  wait_pairs_above $((n_back + 5)) 15 >/dev/null || fail "pairs stopped after return $k"
+done
+
+# third gap: SIGINT while the camera is missing
+kill_right
+lost_before=$(grep -c '"camera-lost"' "$tmp/r.jsonl")
+for i in $(seq 1 100); do
+  [ "$(grep -c '"camera-lost"' "$tmp/r.jsonl")" -gt "$lost_before" ] && break
+  sleep 0.05
+done
+sleep 0.6 # into the reconnect attempts
+echo "gap 3: SIGINT at $(now)" >>"$tmp/events.log"
+kill -INT "$mpid"
+rc=
+for i in $(seq 1 200); do
+  if ! kill -0 "$mpid" 2>/dev/null; then wait "$mpid"; rc=$?; break; fi
+  sleep 0.05
+done
+[ -n "$rc" ] || fail "the tool did not end within 10 s of SIGINT during a reconnect"
+[ "$rc" -eq 0 ] || fail "exit status $rc after SIGINT (expected 0)"
+mpid=
+
+python3 - "$tmp/r.jsonl" "$tmp/sections.jsonl" "$tmp/events.log" <<'EOF' || fail "JSON check"
+import json, sys
+lines = [json.loads(l) for l in open(sys.argv[1])]  # every line parses
+pairs = [o for o in lines if 'frame' in o]
+lost = [o for o in lines if o.get('status') == 'camera-lost']
+back = [o for o in lines if o.get('status') == 'camera-back']
+assert all(o['camera'] == 'right' for o in lost + back), 'only the right camera was missing'
+assert len(back) == 2, f'{len(back)} camera-back lines, 2 returns'
+assert len(lost) >= 3, f'{len(lost)} camera-lost lines for 3 gaps'
+# each gap: camera-lost lines between the last pair before and the first pair after it
+order = [('p', o['pts_ns']) if 'frame' in o else (o['status'], o['pts_ns']) for o in lines]
+gaps = []
+for i, (kind, t) in enumerate(order):
+    if kind == 'camera-back':
+        before = [x for x in order[:i] if x[0] == 'p']
+        after = [x for x in order[i:] if x[0] == 'p']
+        assert before and after, 'pairs on both sides of a return'
+        gaps.append(after[0][1] - before[-1][1])
+for g in gaps:
+    assert 2.5e9 <= g <= 15e9, f'pts gap {g/1e9:.2f} s over a 3 s loss: running time not continuous'
+pts = [o['pts_ns'] for o in pairs]
+assert all(b > a for a, b in zip(pts, pts[1:])), 'pair pts_ns not increasing'
+fallback = [json.loads(l) for l in open(sys.argv[2]) if '"fallback"' in l]
+with open(sys.argv[3], 'a') as ev:
+    ev.write(f'pairs {len(pairs)}, camera-lost lines {len(lost)}, camera-back lines {len(back)}, '
+             f'pts gaps {", ".join(f"{g/1e9:.2f}" for g in gaps)} s, '
+             f'spraycontrol fallback commands {len(fallback)}\n')
+EOF
+grep -q "camera '127.0.0.2' lost" "$tmp/run.log" || fail "no warning naming the lost camera on stderr"
+grep -q "camera-lost lines" "$tmp/run.log" || fail "the summary does not count the camera-lost lines"
+for r in "${resume[@]}"; do
+  awk -v r="$r" 'BEGIN { exit !(r <= 2.0) }' || fail "pairs resumed ${r} s after a return (> 2 s)"
+done
+cat "$tmp/events.log"
+echo "OK: the right camera lost and back twice, pairs resumed after ${resume[*]} s, exit 0 on SIGINT during a reconnect"
