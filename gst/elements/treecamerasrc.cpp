@@ -441,14 +441,36 @@ static gpointer supervise(gpointer data)
     const bool was_streaming = st.phase == Phase::Streaming;
     st.phase = Phase::Connecting;
     st.fault = false;
+    const bool first = !st.lost;
+    if (st.interval > 0 && first) {
+      st.lost = true;
+      st.lost_at = was_streaming ? st.last_buffer : now;
+      st.attempt = 0;
+    } else if (st.interval > 0) {
+      st.attempt++; // it opened but sent no frame
+    }
+    const guint wait = first ? st.interval : backoff_ms(st, st.attempt);
+    const guint attempt = st.attempt;
+    const guint interval = st.interval;
     g_mutex_unlock(&st.lock);
-    GST_INFO_OBJECT(self, "camera '%s': %s; removing its aravissrc", camera.c_str(),
-                    reason.c_str());
+    // said first: stopping an aravissrc whose camera is gone can take seconds (aravis waits for
+    // the camera to acknowledge the end of the acquisition)
+    if (interval > 0 && first) {
+      GST_ELEMENT_WARNING(self, RESOURCE, READ,
+                          ("camera '%s' lost: %s; reconnecting", camera.c_str(), reason.c_str()),
+                          ("first attempt in %u ms", wait));
+      post_camera_message(self, camera, "lost", attempt, reason, 0, GST_CLOCK_TIME_NONE);
+    } else if (interval > 0) {
+      post_camera_message(self, camera, "retry", attempt, reason, wait, GST_CLOCK_TIME_NONE);
+    }
+    const gint64 t0 = g_get_monotonic_time();
     teardown_source(self);
+    GST_INFO_OBJECT(self, "camera '%s': %s; its aravissrc removed in %.2f s", camera.c_str(),
+                    reason.c_str(), (g_get_monotonic_time() - t0) / 1e6);
     g_mutex_lock(&st.lock);
     if (!st.running || st.eos)
       continue;
-    if (st.interval == 0) {
+    if (interval == 0) {
       st.phase = Phase::Stopped;
       g_mutex_unlock(&st.lock);
       GST_ELEMENT_ERROR(self, RESOURCE, READ, ("Camera '%s' lost: %s", camera.c_str(),
@@ -457,27 +479,8 @@ static gpointer supervise(gpointer data)
       g_mutex_lock(&st.lock);
       continue;
     }
-    const bool first = !st.lost;
-    if (first) {
-      st.lost = true;
-      st.lost_at = was_streaming ? st.last_buffer : now;
-      st.attempt = 0;
-    } else {
-      st.attempt++; // it opened but sent no frame
-    }
-    const guint wait = first ? st.interval : backoff_ms(st, st.attempt);
-    st.next_try = g_get_monotonic_time() + gint64(wait) * 1000;
-    const guint attempt = st.attempt;
-    g_mutex_unlock(&st.lock);
-    if (first) {
-      GST_ELEMENT_WARNING(self, RESOURCE, READ,
-                          ("camera '%s' lost: %s; reconnecting", camera.c_str(), reason.c_str()),
-                          ("first attempt in %u ms", wait));
-      post_camera_message(self, camera, "lost", attempt, reason, 0, GST_CLOCK_TIME_NONE);
-    } else {
-      post_camera_message(self, camera, "retry", attempt, reason, wait, GST_CLOCK_TIME_NONE);
-    }
-    g_mutex_lock(&st.lock);
+    // the wait counts from the loss, not from the end of the removal
+    st.next_try = t0 + gint64(wait) * 1000;
   }
   g_mutex_unlock(&st.lock);
   return nullptr;
@@ -499,12 +502,20 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
     if (details)
       gst_structure_get_int(details, "flow-return", &flow);
     bool keep = false;
-    g_mutex_lock(&st.lock);
     GstObject *from = GST_MESSAGE_SRC(msg);
+    // an aravissrc: the current one, the one being opened, or one being removed
+    bool from_camera = GST_IS_ELEMENT(from) && GST_OBJECT_PARENT(from) == GST_OBJECT(self);
+    for (GstElement *e : {self->camfilter, self->queue, self->bayer, self->convert,
+                          self->outfilter})
+      if (e && from == GST_OBJECT(e))
+        from_camera = false;
+    g_mutex_lock(&st.lock);
     const bool from_opening = st.opening && from == GST_OBJECT(st.opening);
     const bool from_source = st.source && from == GST_OBJECT(st.source);
-    if ((from_opening || from_source) && st.eos) {
-      keep = true; // the end was asked for: a camera failing now changes nothing
+    if (from_camera && (st.eos || (!from_opening && !from_source && st.interval > 0))) {
+      // the end was asked for, or an aravissrc already being removed: a camera failing now
+      // changes nothing
+      keep = true;
     } else if ((from_opening || from_source) && flow == GST_FLOW_NOT_NEGOTIATED) {
       st.phase = Phase::Stopped; // goes to the bus: the caps are wrong, retrying cannot help
     } else if (from_opening) {

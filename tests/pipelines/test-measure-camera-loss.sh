@@ -12,8 +12,9 @@
 #     per second) and one camera-back line per return;
 #   - stderr has the WARNING naming the camera;
 #   - after SIGINT during the third gap: exit status 0 within 10 s, every JSON line parses;
-#   - spraycontrol (--sections): its fail-safe sets the sections to the fallback state in a gap
-#     once it has planned (reported; required only when it planned before the first gap).
+#   - spraycontrol (--sections): its fail-safe sets the sections to the fallback state during
+#     the gaps (hold-time 500 ms; at least one fallback command over the three gaps: it acts only
+#     once it has planned, which may start after the first gap).
 # The fake images are not trees: this checks the supervision and the pairing, not measurements.
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
@@ -32,7 +33,17 @@ left_pid=$1
 right_pid=$2
 
 now() { date +%s.%N; }
-pairs() { grep -c '"frame"' "$tmp/r.jsonl" 2>/dev/null || true; }
+# the tool runs (a process that ended is a zombie until waited for: kill -0 still finds it)
+alive() {
+  local st
+  st=$(sed 's/^.*) //' "/proc/$mpid/stat" 2>/dev/null | cut -c1)
+  [ -n "$st" ] && [ "$st" != Z ]
+}
+pairs() {
+  local c
+  c=$(grep -c '"frame"' "$tmp/r.jsonl" 2>/dev/null)
+  echo "${c:-0}"
+}
 fail() {
   echo "--- tool stderr:"; cat "$tmp/run.log"
   echo "--- events:"; cat "$tmp/events.log"
@@ -47,7 +58,7 @@ wait_pairs_above() {
   while :; do
     t=$(now)
     if [ "$(pairs)" -gt "$n" ]; then echo "$t"; return 0; fi
-    kill -0 "$mpid" 2>/dev/null || return 1
+    alive || return 1
     awk -v a="$t" -v b="$t0" -v l="$limit" 'BEGIN { exit !(a - b > l) }' && return 1
     sleep 0.05
   done
@@ -77,11 +88,12 @@ for k in 1 2; do
   before=$(pairs)
   echo "gap $k: killed at $t_kill after $before pairs" >>"$tmp/events.log"
   sleep 3
-  kill -0 "$mpid" 2>/dev/null || fail "the tool ended during gap $k"
+  alive || { wait "$mpid"; fail "the tool ended (status $?) during gap $k"; }
   restart_right
   t_back=$(now)
   n_back=$(pairs)
-  t_pair=$(wait_pairs_above "$n_back" 15) || fail "no pair within 15 s of the camera's return $k"
+  t_pair=$(wait_pairs_above "$n_back" 15) ||
+    { alive || { wait "$mpid"; echo "the tool ended: status $?"; }; fail "no pair within 15 s of the camera's return $k"; }
   r=$(awk -v a="$t_pair" -v b="$t_back" 'BEGIN { printf "%.2f", a - b }')
   resume+=("$r")
   echo "gap $k: camera back at $t_back, first new pair at $t_pair: resumed after $r s" \
@@ -102,7 +114,7 @@ echo "gap 3: SIGINT at $(now)" >>"$tmp/events.log"
 kill -INT "$mpid"
 rc=
 for i in $(seq 1 200); do
-  if ! kill -0 "$mpid" 2>/dev/null; then wait "$mpid"; rc=$?; break; fi
+  if ! alive; then wait "$mpid"; rc=$?; break; fi
   sleep 0.05
 done
 [ -n "$rc" ] || fail "the tool did not end within 10 s of SIGINT during a reconnect"
@@ -118,24 +130,23 @@ back = [o for o in lines if o.get('status') == 'camera-back']
 assert all(o['camera'] == 'right' for o in lost + back), 'only the right camera was missing'
 assert len(back) == 2, f'{len(back)} camera-back lines, 2 returns'
 assert len(lost) >= 3, f'{len(lost)} camera-lost lines for 3 gaps'
-# each gap: camera-lost lines between the last pair before and the first pair after it
-order = [('p', o['pts_ns']) if 'frame' in o else (o['status'], o['pts_ns']) for o in lines]
-gaps = []
-for i, (kind, t) in enumerate(order):
-    if kind == 'camera-back':
-        before = [x for x in order[:i] if x[0] == 'p']
-        after = [x for x in order[i:] if x[0] == 'p']
-        assert before and after, 'pairs on both sides of a return'
-        gaps.append(after[0][1] - before[-1][1])
-for g in gaps:
-    assert 2.5e9 <= g <= 15e9, f'pts gap {g/1e9:.2f} s over a 3 s loss: running time not continuous'
 pts = [o['pts_ns'] for o in pairs]
 assert all(b > a for a, b in zip(pts, pts[1:])), 'pair pts_ns not increasing'
-fallback = [json.loads(l) for l in open(sys.argv[2]) if '"fallback"' in l]
+# the two gaps with a return: the only steps over 1.5 s between pairs, each as long as the
+# camera was missing (3 s, plus the detection and the reopening), not a restart at 0; camera-lost
+# lines fall in each (running time, as the pairs')
+steps = [(i, b - a) for i, (a, b) in enumerate(zip(pts, pts[1:])) if b - a > 1.5e9]
+assert len(steps) == 2, f'{len(steps)} gaps in the pairs, 2 returns'
+gaps = [g for _, g in steps]
+for i, g in steps:
+    assert 2.5e9 <= g <= 15e9, f'pts gap {g/1e9:.2f} s over a 3 s loss: running time not continuous'
+    assert any(pts[i] < o['pts_ns'] < pts[i + 1] for o in lost), 'no camera-lost line in a gap'
+fallback = [o for o in map(json.loads, open(sys.argv[2])) if o.get('fallback')]
 with open(sys.argv[3], 'a') as ev:
     ev.write(f'pairs {len(pairs)}, camera-lost lines {len(lost)}, camera-back lines {len(back)}, '
              f'pts gaps {", ".join(f"{g/1e9:.2f}" for g in gaps)} s, '
              f'spraycontrol fallback commands {len(fallback)}\n')
+assert fallback, 'spraycontrol never went to its fallback state during the gaps'
 EOF
 grep -q "camera '127.0.0.2' lost" "$tmp/run.log" || fail "no warning naming the lost camera on stderr"
 grep -q "camera-lost lines" "$tmp/run.log" || fail "the summary does not count the camera-lost lines"
