@@ -279,6 +279,9 @@ static bool open_source(GstTreeCameraSrc *self, std::string &why)
   GST_OBJECT_UNLOCK(self);
   g_object_set(src, "do-timestamp", TRUE, nullptr);
   gst_element_set_locked_state(src, TRUE); // the supervisor and change_state set its state
+  // the bin is the source: GstBin would clear its SOURCE flag when this child is removed, and a
+  // pipeline sends EOS only to children flagged so (gst_bin_iterate_sources)
+  GST_OBJECT_FLAG_UNSET(src, GST_ELEMENT_FLAG_SOURCE);
   g_mutex_lock(&st.lock);
   st.opening = src;
   st.open_error.clear();
@@ -936,4 +939,6 @@ static void gst_tree_camera_src_init(GstTreeCameraSrc *self)
   self->ghost = gst_ghost_pad_new_no_target_from_template("src", templ);
   gst_object_unref(templ);
   gst_element_add_pad(GST_ELEMENT(self), self->ghost);
+  // a source also while no aravissrc is inside (a pipeline's EOS goes to its sources only)
+  GST_OBJECT_FLAG_SET(self, GST_ELEMENT_FLAG_SOURCE);
 }
