@@ -51,6 +51,7 @@
 
 #include <algorithm>
 #include <string>
+#include <vector>
 
 GST_DEBUG_CATEGORY_STATIC(treecamerasrc_debug);
 #define GST_CAT_DEFAULT treecamerasrc_debug
@@ -110,6 +111,7 @@ struct State {
   guint attempt = 0;      // failed attempts since the camera was lost
   bool lost = false;      // "lost" posted, "back" not yet
   guint64 reconnects = 0; // times the camera came back
+  std::vector<GThread *> reapers; // threads stopping lost aravissrcs, joined at the stop
   // the settings of this run (READY->PAUSED)
   std::string camera;
   guint timeout = DEFAULT_TIMEOUT, interval = DEFAULT_RECONNECT_INTERVAL,
@@ -240,15 +242,35 @@ static GstPadProbeReturn chain_query_probe(GstPad *pad, GstPadProbeInfo *info, g
   return GST_PAD_PROBE_HANDLED;
 }
 
-/* Stops and removes @src (supervisor or state-change thread, never a streaming thread). */
+/* Stops and removes @src (supervisor, reaper or state-change thread, never a streaming
+ * thread). */
 static void remove_source(GstTreeCameraSrc *self, GstElement *src)
 {
+  const gint64 t0 = g_get_monotonic_time();
   gst_element_set_state(src, GST_STATE_NULL);
-  gst_bin_remove(GST_BIN(self), src); // unlinks it, drops the bin's ref
+  gst_bin_remove(GST_BIN(self), src); // drops the bin's ref
+  GST_INFO_OBJECT(self, "an aravissrc stopped and removed in %.2f s",
+                  (g_get_monotonic_time() - t0) / 1e6);
 }
 
-/* Removes the running aravissrc, if any. */
-static void teardown_source(GstTreeCameraSrc *self)
+struct Reap {
+  GstTreeCameraSrc *self;
+  GstElement *src;
+};
+
+static gpointer reap(gpointer data)
+{
+  Reap *r = static_cast<Reap *>(data);
+  remove_source(r->self, r->src);
+  delete r;
+  return nullptr;
+}
+
+/* Takes the running aravissrc, if any, off the chain at once (the chain is free for the next
+ * one) and stops and removes it: here with @wait, else on a reaper thread. Stopping an
+ * aravissrc whose camera is gone takes seconds (its frame wait times out, then aravis waits for
+ * the camera to acknowledge the end of the acquisition): the next attempt need not wait for it. */
+static void teardown_source(GstTreeCameraSrc *self, bool wait)
 {
   State &st = *self->state;
   g_mutex_lock(&st.source_lock);
@@ -258,9 +280,33 @@ static void teardown_source(GstTreeCameraSrc *self)
   g_mutex_unlock(&st.lock);
   if (src) {
     GST_DEBUG_OBJECT(self, "removing %" GST_PTR_FORMAT, src);
-    remove_source(self, src);
+    GstPad *srcpad = gst_element_get_static_pad(src, "src");
+    if (GstPad *peer = gst_pad_get_peer(srcpad)) {
+      gst_pad_unlink(srcpad, peer);
+      gst_object_unref(peer);
+    }
+    gst_object_unref(srcpad);
+    if (wait) {
+      remove_source(self, src);
+    } else {
+      GThread *t = g_thread_new("treecamerasrc-stop", reap, new Reap{self, src});
+      g_mutex_lock(&st.lock);
+      st.reapers.push_back(t);
+      g_mutex_unlock(&st.lock);
+    }
   }
   g_mutex_unlock(&st.source_lock);
+}
+
+static void join_reapers(GstTreeCameraSrc *self)
+{
+  State &st = *self->state;
+  g_mutex_lock(&st.lock);
+  std::vector<GThread *> reapers;
+  reapers.swap(st.reapers);
+  g_mutex_unlock(&st.lock);
+  for (GThread *t : reapers)
+    g_thread_join(t);
 }
 
 /* One attempt: a fresh aravissrc, the camera opened (aravissrc opens it when camera-name is
@@ -467,9 +513,9 @@ static gpointer supervise(gpointer data)
       post_camera_message(self, camera, "retry", attempt, reason, wait, GST_CLOCK_TIME_NONE);
     }
     const gint64 t0 = g_get_monotonic_time();
-    teardown_source(self);
-    GST_INFO_OBJECT(self, "camera '%s': %s; its aravissrc removed in %.2f s", camera.c_str(),
-                    reason.c_str(), (g_get_monotonic_time() - t0) / 1e6);
+    teardown_source(self, false);
+    GST_INFO_OBJECT(self, "camera '%s': %s; its aravissrc taken off the chain", camera.c_str(),
+                    reason.c_str());
     g_mutex_lock(&st.lock);
     if (!st.running || st.eos)
       continue;
@@ -715,7 +761,8 @@ static void stop_supervisor(GstTreeCameraSrc *self)
   g_mutex_unlock(&st.lock);
   if (thread)
     g_thread_join(thread);
-  teardown_source(self);
+  teardown_source(self, true);
+  join_reapers(self);
 }
 
 /* PLAYING <-> PAUSED for the aravissrc, which the bin's own state changes skip (locked). */

@@ -11,7 +11,9 @@
 #   - the JSON shows each gap: camera-lost lines for the right camera (one at the loss, then one
 #     per second) and one camera-back line per return;
 #   - stderr has the WARNING naming the camera;
-#   - after SIGINT during the third gap: exit status 0 within 10 s, every JSON line parses;
+#   - after SIGINT during the third gap: exit status 0 within 20 s (the EOS is immediate; going
+#     to NULL waits for aravis to give up on the dead camera: measured 3-9 s), every JSON line
+#     parses;
 #   - spraycontrol (--sections): its fail-safe sets the sections to the fallback state during
 #     the gaps (hold-time 500 ms; at least one fallback command over the three gaps: it acts only
 #     once it has planned, which may start after the first gap).
@@ -110,14 +112,16 @@ for i in $(seq 1 100); do
   sleep 0.05
 done
 sleep 0.6 # into the reconnect attempts
-echo "gap 3: SIGINT at $(now)" >>"$tmp/events.log"
+t_int=$(now)
 kill -INT "$mpid"
 rc=
-for i in $(seq 1 200); do
+for i in $(seq 1 400); do
   if ! alive; then wait "$mpid"; rc=$?; break; fi
   sleep 0.05
 done
-[ -n "$rc" ] || fail "the tool did not end within 10 s of SIGINT during a reconnect"
+echo "gap 3: SIGINT at $t_int, the tool ended after $(awk -v a="$(now)" -v b="$t_int" \
+  'BEGIN { printf "%.1f", a - b }') s" >>"$tmp/events.log"
+[ -n "$rc" ] || fail "the tool did not end within 20 s of SIGINT during a reconnect"
 [ "$rc" -eq 0 ] || fail "exit status $rc after SIGINT (expected 0)"
 mpid=
 
