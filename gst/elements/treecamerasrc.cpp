@@ -51,7 +51,6 @@
 
 #include <algorithm>
 #include <string>
-#include <vector>
 
 GST_DEBUG_CATEGORY_STATIC(treecamerasrc_debug);
 #define GST_CAT_DEFAULT treecamerasrc_debug
@@ -111,7 +110,8 @@ struct State {
   guint attempt = 0;      // failed attempts since the camera was lost
   bool lost = false;      // "lost" posted, "back" not yet
   guint64 reconnects = 0; // times the camera came back
-  std::vector<GThread *> reapers; // threads stopping lost aravissrcs, joined at the stop
+  GstPad *source_pad = nullptr; // its src pad (a ref): reached without the element's lock
+  guint reapers = 0; // threads stopping lost aravissrcs (each holds a ref on the bin)
   // the settings of this run (READY->PAUSED)
   std::string camera;
   guint timeout = DEFAULT_TIMEOUT, interval = DEFAULT_RECONNECT_INTERVAL,
@@ -203,12 +203,16 @@ static guint backoff_ms(const State &st, guint n)
 
 /* On the aravissrc's src pad: frames mark the camera alive; its EOS (what a GstBaseSrc pushes
  * after an error) is a lost camera, not the end of the stream, and never leaves the bin. */
-static GstPadProbeReturn source_probe(GstPad *, GstPadProbeInfo *info, gpointer data)
+static GstPadProbeReturn source_probe(GstPad *pad, GstPadProbeInfo *info, gpointer data)
 {
   GstTreeCameraSrc *self = GST_TREE_CAMERA_SRC(data);
   State &st = *self->state;
   if (info->type & (GST_PAD_PROBE_TYPE_BUFFER | GST_PAD_PROBE_TYPE_BUFFER_LIST)) {
     g_mutex_lock(&st.lock);
+    if (pad != st.source_pad) { // a lost one's late frame (or the first, just before it is set)
+      g_mutex_unlock(&st.lock);
+      return GST_PAD_PROBE_OK;
+    }
     st.last_buffer = g_get_monotonic_time();
     if (!st.got_buffer) {
       st.got_buffer = true;
@@ -242,8 +246,7 @@ static GstPadProbeReturn chain_query_probe(GstPad *pad, GstPadProbeInfo *info, g
   return GST_PAD_PROBE_HANDLED;
 }
 
-/* Stops and removes @src (supervisor, reaper or state-change thread, never a streaming
- * thread). */
+/* Stops and removes @src, an aravissrc that never ran (supervisor thread). */
 static void remove_source(GstTreeCameraSrc *self, GstElement *src)
 {
   const gint64 t0 = g_get_monotonic_time();
@@ -253,60 +256,82 @@ static void remove_source(GstTreeCameraSrc *self, GstElement *src)
                   (g_get_monotonic_time() - t0) / 1e6);
 }
 
+#define REAPER_WAIT_US (2 * G_USEC_PER_SEC)
+
 struct Reap {
-  GstTreeCameraSrc *self;
-  GstElement *src;
+  GstTreeCameraSrc *self; // a ref
+  GstElement *src;        // a ref
 };
 
+/* A lost aravissrc's end, on its own thread: out of the bin, then stopped. */
 static gpointer reap(gpointer data)
 {
   Reap *r = static_cast<Reap *>(data);
-  remove_source(r->self, r->src);
+  State &st = *r->self->state;
+  const gint64 t0 = g_get_monotonic_time();
+  // waits for the element's lock, which its frame wait holds (aravis: 2 s after the last frame)
+  gst_bin_remove(GST_BIN(r->self), r->src);
+  gst_element_set_state(r->src, GST_STATE_NULL);
+  GST_INFO_OBJECT(r->self, "a lost aravissrc stopped and removed in %.2f s",
+                  (g_get_monotonic_time() - t0) / 1e6);
+  gst_object_unref(r->src);
+  g_mutex_lock(&st.lock);
+  st.reapers--;
+  g_cond_broadcast(&st.cond);
+  g_mutex_unlock(&st.lock);
+  gst_object_unref(r->self);
   delete r;
   return nullptr;
 }
 
 /* Takes the running aravissrc, if any, off the chain at once (the chain is free for the next
- * one) and stops and removes it: here with @wait, else on a reaper thread. Stopping an
+ * one) and stops and removes it on a reaper thread. Stopping an
  * aravissrc whose camera is gone takes seconds (its frame wait times out, then aravis waits for
- * the camera to acknowledge the end of the acquisition): the next attempt need not wait for it. */
-static void teardown_source(GstTreeCameraSrc *self, bool wait)
+ * the camera to acknowledge the end of the acquisition and of its control, 2.5 s each): the next
+ * attempt need not wait for it. */
+static void teardown_source(GstTreeCameraSrc *self)
 {
   State &st = *self->state;
   g_mutex_lock(&st.source_lock);
   g_mutex_lock(&st.lock);
   GstElement *src = st.source;
+  GstPad *pad = st.source_pad;
   st.source = nullptr;
+  st.source_pad = nullptr;
   g_mutex_unlock(&st.lock);
-  if (src) {
-    GST_DEBUG_OBJECT(self, "removing %" GST_PTR_FORMAT, src);
-    GstPad *srcpad = gst_element_get_static_pad(src, "src");
-    if (GstPad *peer = gst_pad_get_peer(srcpad)) {
-      gst_pad_unlink(srcpad, peer);
+  if (pad) {
+    if (GstPad *peer = gst_pad_get_peer(pad)) {
+      gst_pad_unlink(pad, peer);
       gst_object_unref(peer);
     }
-    gst_object_unref(srcpad);
-    if (wait) {
-      remove_source(self, src);
-    } else {
-      GThread *t = g_thread_new("treecamerasrc-stop", reap, new Reap{self, src});
-      g_mutex_lock(&st.lock);
-      st.reapers.push_back(t);
-      g_mutex_unlock(&st.lock);
-    }
+    gst_object_unref(pad);
+  }
+  if (src) {
+    GST_DEBUG_OBJECT(self, "removing %" GST_PTR_FORMAT, src);
+    g_mutex_lock(&st.lock);
+    st.reapers++;
+    g_mutex_unlock(&st.lock);
+    Reap *r = new Reap{GST_TREE_CAMERA_SRC(gst_object_ref(self)),
+                       GST_ELEMENT(gst_object_ref(src))};
+    g_thread_unref(g_thread_new("treecamerasrc-stop", reap, r));
   }
   g_mutex_unlock(&st.source_lock);
 }
 
-static void join_reapers(GstTreeCameraSrc *self)
+/* Waits a little for the reapers: an aravissrc whose camera is gone may take aravis 8 s and
+ * more to stop, which must not hold up the pipeline's stop (Ctrl-C); a reaper still running
+ * finishes on its own (it holds refs on the bin and the aravissrc). */
+static void wait_reapers(GstTreeCameraSrc *self)
 {
   State &st = *self->state;
+  const gint64 end = g_get_monotonic_time() + REAPER_WAIT_US;
   g_mutex_lock(&st.lock);
-  std::vector<GThread *> reapers;
-  reapers.swap(st.reapers);
+  while (st.reapers > 0 && g_cond_wait_until(&st.cond, &st.lock, end)) {
+  }
+  if (st.reapers > 0)
+    GST_INFO_OBJECT(self, "%u lost aravissrc(s) still stopping: not waiting for them",
+                    st.reapers);
   g_mutex_unlock(&st.lock);
-  for (GThread *t : reapers)
-    g_thread_join(t);
 }
 
 /* One attempt: a fresh aravissrc, the camera opened (aravissrc opens it when camera-name is
@@ -337,13 +362,14 @@ static bool open_source(GstTreeCameraSrc *self, std::string &why)
   g_object_set(src, "camera-name", camera.c_str(), nullptr);
   if (!features.empty())
     g_object_set(src, "features", features.c_str(), nullptr);
+  GstPad *srcpad = nullptr;
   GObject *arv_camera = nullptr;
   g_object_get(src, "camera", &arv_camera, nullptr);
   bool ok = arv_camera != nullptr;
   if (arv_camera)
     g_object_unref(arv_camera);
   if (ok) {
-    GstPad *srcpad = gst_element_get_static_pad(src, "src");
+    srcpad = gst_element_get_static_pad(src, "src");
     GstPad *sinkpad = gst_element_get_static_pad(self->camfilter, "sink");
     gst_pad_add_probe(srcpad,
                       GstPadProbeType(GST_PAD_PROBE_TYPE_BUFFER | GST_PAD_PROBE_TYPE_BUFFER_LIST |
@@ -352,7 +378,6 @@ static bool open_source(GstTreeCameraSrc *self, std::string &why)
     ok = gst_pad_link(srcpad, sinkpad) == GST_PAD_LINK_OK;
     if (!ok)
       why = "cannot link aravissrc to the chain";
-    gst_object_unref(srcpad);
     gst_object_unref(sinkpad);
   }
   if (ok) {
@@ -374,8 +399,10 @@ static bool open_source(GstTreeCameraSrc *self, std::string &why)
       why = "stopping";
     }
     g_mutex_lock(&st.lock);
-    if (ok)
+    if (ok) {
       st.source = src;
+      st.source_pad = GST_PAD(gst_object_ref(srcpad));
+    }
     st.opening = nullptr;
     g_mutex_unlock(&st.lock);
     g_mutex_unlock(&st.source_lock);
@@ -388,6 +415,8 @@ static bool open_source(GstTreeCameraSrc *self, std::string &why)
     g_mutex_unlock(&st.lock);
     remove_source(self, src);
   }
+  if (srcpad)
+    gst_object_unref(srcpad);
   return ok;
 }
 
@@ -513,7 +542,7 @@ static gpointer supervise(gpointer data)
       post_camera_message(self, camera, "retry", attempt, reason, wait, GST_CLOCK_TIME_NONE);
     }
     const gint64 t0 = g_get_monotonic_time();
-    teardown_source(self, false);
+    teardown_source(self);
     GST_INFO_OBJECT(self, "camera '%s': %s; its aravissrc taken off the chain", camera.c_str(),
                     reason.c_str());
     g_mutex_lock(&st.lock);
@@ -759,10 +788,15 @@ static void stop_supervisor(GstTreeCameraSrc *self)
   GThread *thread = st.thread;
   st.thread = nullptr;
   g_mutex_unlock(&st.lock);
+  const gint64 t0 = g_get_monotonic_time();
   if (thread)
     g_thread_join(thread);
-  teardown_source(self, true);
-  join_reapers(self);
+  const gint64 t1 = g_get_monotonic_time();
+  // on a reaper too: the camera may be gone without the timeout having said so yet
+  teardown_source(self);
+  wait_reapers(self);
+  GST_INFO_OBJECT(self, "stopped: supervisor %.2f s, cameras %.2f s", (t1 - t0) / 1e6,
+                  (g_get_monotonic_time() - t1) / 1e6);
 }
 
 /* PLAYING <-> PAUSED for the aravissrc, which the bin's own state changes skip (locked). */
