@@ -581,12 +581,12 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
       gst_structure_get_int(details, "flow-return", &flow);
     bool keep = false;
     GstObject *from = GST_MESSAGE_SRC(msg);
-    // an aravissrc: the current one, the one being opened, or one being removed
-    bool from_camera = GST_IS_ELEMENT(from) && GST_OBJECT_PARENT(from) == GST_OBJECT(self);
-    for (GstElement *e : {self->camfilter, self->queue, self->bayer, self->convert,
-                          self->outfilter})
-      if (e && from == GST_OBJECT(e))
-        from_camera = false;
+    // an aravissrc: the current one, the one being opened, or one being removed (perhaps
+    // already out of the bin: its message was on its way)
+    bool from_camera = false;
+    if (GST_IS_ELEMENT(from))
+      if (GstElementFactory *f = gst_element_get_factory(GST_ELEMENT(from)))
+        from_camera = g_str_equal(GST_OBJECT_NAME(f), "aravissrc");
     g_mutex_lock(&st.lock);
     const bool from_opening = st.opening && from == GST_OBJECT(st.opening);
     const bool from_source = st.source && from == GST_OBJECT(st.source);

@@ -11,9 +11,11 @@
 #   - the JSON shows each gap: camera-lost lines for the right camera (one at the loss, then one
 #     per second) and one camera-back line per return;
 #   - stderr has the WARNING naming the camera;
-#   - after SIGINT during the third gap: exit status 0 within 20 s (the EOS is immediate; going
-#     to NULL waits for aravis to give up on the dead camera: measured 3-9 s), every JSON line
-#     parses;
+#   - after SIGINT during the third gap: exit status 0 within 10 s (the EOS is immediate; going
+#     to NULL waits for an attempt in progress, up to ~2.5 s, and up to 2 s for the lost
+#     aravissrcs to stop), every JSON line parses;
+#   - --reconnect 0: a lost camera ends the run with an error naming it (exit status 1), as
+#     before treecamerasrc;
 #   - spraycontrol (--sections): its fail-safe sets the sections to the fallback state during
 #     the gaps (hold-time 500 ms; at least one fallback command over the three gaps: it acts only
 #     once it has planned, which may start after the first gap).
@@ -115,13 +117,13 @@ sleep 0.6 # into the reconnect attempts
 t_int=$(now)
 kill -INT "$mpid"
 rc=
-for i in $(seq 1 400); do
+for i in $(seq 1 200); do
   if ! alive; then wait "$mpid"; rc=$?; break; fi
   sleep 0.05
 done
 echo "gap 3: SIGINT at $t_int, the tool ended after $(awk -v a="$(now)" -v b="$t_int" \
   'BEGIN { printf "%.1f", a - b }') s" >>"$tmp/events.log"
-[ -n "$rc" ] || fail "the tool did not end within 20 s of SIGINT during a reconnect"
+[ -n "$rc" ] || fail "the tool did not end within 10 s of SIGINT during a reconnect"
 [ "$rc" -eq 0 ] || fail "exit status $rc after SIGINT (expected 0)"
 mpid=
 
@@ -157,5 +159,35 @@ grep -q "camera-lost lines" "$tmp/run.log" || fail "the summary does not count t
 for r in "${resume[@]}"; do
   awk -v r="$r" 'BEGIN { exit !(r <= 2.0) }' || fail "pairs resumed ${r} s after a return (> 2 s)"
 done
+
+# --reconnect 0: the loss ends the run
+restart_right
+fake_cameras_wait_for 127.0.0.2 || fail "the right fake camera does not stream again"
+: >"$tmp/r0.jsonl"
+"$measure" --camera-left 127.0.0.1 --camera-right 127.0.0.2 --calibration "$tmp/rig.yml" \
+  --camera-caps video/x-bayer,framerate=10/1 --latency 250 --max-skew 75 \
+  --camera-timeout 1000 --reconnect 0 --json "$tmp/r0.jsonl" --quiet >/dev/null 2>"$tmp/run0.log" &
+mpid=$!
+for i in $(seq 1 400); do
+  [ "$(grep -c '"frame"' "$tmp/r0.jsonl")" -ge 5 ] && break
+  alive || break
+  sleep 0.05
+done
+[ "$(grep -c '"frame"' "$tmp/r0.jsonl")" -ge 5 ] || fail "--reconnect 0: no 5 pairs in 20 s"
+kill_right
+rc=
+for i in $(seq 1 300); do
+  if ! alive; then wait "$mpid"; rc=$?; break; fi
+  sleep 0.05
+done
+mpid_left=$mpid
+mpid=
+[ -n "$rc" ] || { kill -KILL "$mpid_left"; fail "--reconnect 0: still running 15 s after the loss"; }
+[ "$rc" -eq 1 ] || { cat "$tmp/run0.log"; fail "--reconnect 0: exit status $rc after the loss (expected 1)"; }
+# the timeout's error names the camera, aravis's own (if it comes first) its element's path
+grep -q "error from" "$tmp/run0.log" && grep -q "127.0.0.2\|camera-right" "$tmp/run0.log" ||
+  { cat "$tmp/run0.log"; fail "--reconnect 0: no error naming the right camera"; }
+echo "--reconnect 0: exit status 1: $(grep -m1 'error from' "$tmp/run0.log")" >>"$tmp/events.log"
+
 cat "$tmp/events.log"
 echo "OK: the right camera lost and back twice, pairs resumed after ${resume[*]} s, exit 0 on SIGINT during a reconnect"
