@@ -590,9 +590,9 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
     g_mutex_lock(&st.lock);
     const bool from_opening = st.opening && from == GST_OBJECT(st.opening);
     const bool from_source = st.source && from == GST_OBJECT(st.source);
-    if (from_camera && (st.eos || (!from_opening && !from_source && st.interval > 0))) {
-      // the end was asked for, or an aravissrc already being removed: a camera failing now
-      // changes nothing
+    if (from_camera && (st.eos || (!from_opening && !from_source))) {
+      // the end was asked for, or an aravissrc already taken off the chain (lost, or stopping:
+      // unlinked, it fails with not-linked): a camera failing now changes nothing
       keep = true;
     } else if ((from_opening || from_source) && flow == GST_FLOW_NOT_NEGOTIATED) {
       st.phase = Phase::Stopped; // goes to the bus: the caps are wrong, retrying cannot help
