@@ -83,9 +83,11 @@ const gchar *kSummary =
     "  --left PATTERN --right PATTERN: image sequences (left_%04d.jpg) or video files\n"
     "  --camera-left NAME --camera-right NAME: two Aravis cameras (name, serial or IP)\n"
     "Files and cameras need --calibration (OpenCV YAML/XML, or 'left.yaml;right.yaml' ROS).\n"
+    "A camera that drops out is reopened (--camera-timeout, --reconnect); meanwhile the JSON\n"
+    "output gets {\"status\":\"camera-lost\",...} lines, one per second.\n"
     "\n"
-    "Exit status: 0 when the stream ended normally (or by Ctrl-C), 1 on a pipeline error,\n"
-    "2 on a usage error.";
+    "Exit status: 0 when the stream ended normally (or by Ctrl-C), 1 on a pipeline error\n"
+    "(also a lost camera with --reconnect 0), 2 on a usage error.";
 
 [[noreturn]] void usage_error(const std::string &msg)
 {
