@@ -246,7 +246,7 @@ static GstPadProbeReturn chain_query_probe(GstPad *pad, GstPadProbeInfo *info, g
   return GST_PAD_PROBE_HANDLED;
 }
 
-/* Stops and removes @src, an aravissrc that never ran (supervisor thread). */
+/* Stops and removes @src, an aravissrc whose opening failed (supervisor thread). */
 static void remove_source(GstTreeCameraSrc *self, GstElement *src)
 {
   const gint64 t0 = g_get_monotonic_time();
