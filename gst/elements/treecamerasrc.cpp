@@ -531,8 +531,7 @@ static gpointer supervise(gpointer data)
     const guint attempt = st.attempt;
     const guint interval = st.interval;
     g_mutex_unlock(&st.lock);
-    // said first: stopping an aravissrc whose camera is gone can take seconds (aravis waits for
-    // the camera to acknowledge the end of the acquisition)
+    // said at once: the lost camera's aravissrc is then unlinked and stopped on a reaper thread
     if (interval > 0 && first) {
       GST_ELEMENT_WARNING(self, RESOURCE, READ,
                           ("camera '%s' lost: %s; reconnecting", camera.c_str(), reason.c_str()),
