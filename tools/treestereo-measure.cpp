@@ -43,6 +43,8 @@ struct Options {
   gdouble fps = 0;
   gdouble latency_ms = 100, max_skew_ms = 20;
   gint pair_queue = 8;
+  gint camera_timeout_ms = 2000; // a camera is lost after this long without a frame
+  gint reconnect_ms = 500;       // first wait before reopening it (0: a lost camera ends the run)
   gint64 seed = 1;
   gdouble distance = 2.0, speed = 0.5, light = 1.0;
   gchar *scene = nullptr; // synthetic: lab, orchard (default) or hedgerow
@@ -82,9 +84,11 @@ const gchar *kSummary =
     "  --left PATTERN --right PATTERN: image sequences (left_%04d.jpg) or video files\n"
     "  --camera-left NAME --camera-right NAME: two Aravis cameras (name, serial or IP)\n"
     "Files and cameras need --calibration (OpenCV YAML/XML, or 'left.yaml;right.yaml' ROS).\n"
+    "A camera that drops out is reopened (--camera-timeout, --reconnect); meanwhile the JSON\n"
+    "output gets {\"status\":\"camera-lost\",...} lines, one per second.\n"
     "\n"
-    "Exit status: 0 when the stream ended normally (or by Ctrl-C), 1 on a pipeline error,\n"
-    "2 on a usage error.";
+    "Exit status: 0 when the stream ended normally (or by Ctrl-C), 1 on a pipeline error\n"
+    "(also a lost camera with --reconnect 0), 2 on a usage error.";
 
 [[noreturn]] void usage_error(const std::string &msg)
 {
@@ -149,21 +153,17 @@ std::string file_source(const std::string &path, double fps, int frames)
   return s.str();
 }
 
-std::string camera_source(const std::string &name, const Options &o)
+// treecamerasrc: aravissrc do-timestamp=true ! caps ! leaky queue ! [bayer2rgb] ! videoconvert,
+// reopened when the camera drops out (docs/aravis.md). No num-buffers: --frames counts measured
+// pairs, not camera frames. The two cameras start at different times and their first unpaired
+// frames are dropped, so the tool itself ends the stream after the N-th pair (on_result).
+std::string camera_source(const std::string &name, const char *side, const Options &o)
 {
   std::ostringstream s;
   const std::string caps = o.camera_caps ? o.camera_caps : "video/x-raw,format=RGB";
-  // no num-buffers: --frames counts measured pairs, not camera frames. The two cameras start
-  // at different times and their first unpaired frames are dropped, so the tool itself ends the
-  // stream after the N-th pair (on_result).
-  s << "aravissrc camera-name=" << quoted(name) << " do-timestamp=true";
-  // a leaky queue right behind the camera keeps do-timestamp's stamp the frame's arrival
-  // (docs/aravis.md)
-  s << " ! " << caps << " ! queue max-size-buffers=8 max-size-bytes=0 max-size-time=0 "
-    << "leaky=downstream";
-  if (caps.rfind("video/x-bayer", 0) == 0)
-    s << " ! bayer2rgb";
-  s << " ! videoconvert ! video/x-raw,format=RGB";
+  s << "treecamerasrc name=camera-" << side << " camera=" << quoted(name)
+    << " caps=" << quoted(caps) << " timeout=" << o.camera_timeout_ms
+    << " reconnect-interval=" << o.reconnect_ms;
   return s.str();
 }
 
@@ -186,6 +186,10 @@ struct Job {
   guint64 stop_after = 0; // live cameras: pairs to measure before ending the stream (0: all)
   bool error = false, interrupted = false;
   std::chrono::steady_clock::time_point start;
+  // live cameras: which one is missing (treecamerasrc's treestereo-camera messages)
+  bool camera_lost[2] = {false, false};
+  guint64 n_camera_lost = 0, n_camera_back = 0; // JSON status lines written
+  guint lost_timer = 0;
 };
 
 void write_metrics_json(JsonWriter &w, const GstTreeStereoMetrics &m)
@@ -478,6 +482,96 @@ void on_tree(Job &job, GstMessage *msg)
   gst_tree_stereo_tree_record_clear(&r);
 }
 
+// The running time of the pipeline now (what a frame arriving now would be stamped).
+GstClockTime running_time_now(GstElement *pipeline)
+{
+  GstClock *clock = gst_element_get_clock(pipeline);
+  if (!clock)
+    return GST_CLOCK_TIME_NONE;
+  const GstClockTime now = gst_clock_get_time(clock);
+  gst_object_unref(clock);
+  const GstClockTime base = gst_element_get_base_time(pipeline);
+  return now >= base ? now - base : 0;
+}
+
+const char *kSides[2] = {"left", "right"};
+
+// One status line in the --json output: {"status":"camera-lost"|"camera-back","camera":"right",
+// "pts_ns":...}; pts_ns is the running time, comparable with the pairs' pts_ns.
+void write_camera_status(Job &job, int side, bool lost, GstClockTime running, double gap_s)
+{
+  if (lost)
+    job.n_camera_lost++;
+  else
+    job.n_camera_back++;
+  if (!job.json)
+    return;
+  std::ostringstream line;
+  JsonWriter w(line);
+  w.begin_object()
+      .field("status", lost ? "camera-lost" : "camera-back")
+      .field("camera", kSides[side]);
+  if (GST_CLOCK_TIME_IS_VALID(running))
+    w.field("pts_ns", static_cast<unsigned long long>(running));
+  else
+    w.key("pts_ns").null();
+  if (!lost)
+    w.field("gap_s", gap_s);
+  w.end_object();
+  *job.json << line.str() << "\n";
+  job.json->flush();
+}
+
+// While a camera is missing: one camera-lost line per second for each missing camera.
+gboolean on_lost_timer(gpointer data)
+{
+  Job &job = *static_cast<Job *>(data);
+  if (job.interrupted || (!job.camera_lost[0] && !job.camera_lost[1])) {
+    job.lost_timer = 0;
+    return G_SOURCE_REMOVE;
+  }
+  const GstClockTime now = running_time_now(job.pipeline);
+  for (int side = 0; side < 2; side++)
+    if (job.camera_lost[side])
+      write_camera_status(job, side, true, now, 0);
+  return G_SOURCE_CONTINUE;
+}
+
+// treecamerasrc's treestereo-camera messages: lost, retry (still missing), back.
+void on_camera(Job &job, GstMessage *msg)
+{
+  const GstStructure *st = gst_message_get_structure(msg);
+  if (!st || !gst_structure_has_name(st, "treestereo-camera"))
+    return;
+  const char *src = GST_OBJECT_NAME(GST_MESSAGE_SRC(msg));
+  const int side = std::strcmp(src, "camera-left") == 0    ? 0
+                   : std::strcmp(src, "camera-right") == 0 ? 1
+                                                            : -1;
+  const char *state = gst_structure_get_string(st, "state");
+  if (side < 0 || !state)
+    return;
+  guint64 running = GST_CLOCK_TIME_NONE;
+  gst_structure_get_uint64(st, "running-time", &running);
+  if (std::strcmp(state, "lost") == 0 && !job.camera_lost[side]) {
+    // the WARNING beside this message says why, on stderr
+    job.camera_lost[side] = true;
+    if (!job.interrupted)
+      write_camera_status(job, side, true, running, 0);
+    if (!job.lost_timer)
+      job.lost_timer = g_timeout_add(1000, on_lost_timer, &job);
+  } else if (std::strcmp(state, "back") == 0 && job.camera_lost[side]) {
+    job.camera_lost[side] = false;
+    guint64 gap = 0;
+    gst_structure_get_uint64(st, "gap", &gap);
+    guint attempt = 0;
+    gst_structure_get_uint(st, "attempt", &attempt);
+    std::fprintf(stderr, "\ntreestereo-measure: %s camera back after %.1f s (attempt %u)\n",
+                 kSides[side], gap / 1e9, attempt);
+    if (!job.interrupted)
+      write_camera_status(job, side, false, running, gap / 1e9);
+  }
+}
+
 gboolean on_bus(GstBus *, GstMessage *msg, gpointer data)
 {
   Job &job = *static_cast<Job *>(data);
@@ -510,6 +604,7 @@ gboolean on_bus(GstBus *, GstMessage *msg, gpointer data)
   case GST_MESSAGE_ELEMENT:
     on_tree(job, msg);
     on_section(job, msg);
+    on_camera(job, msg);
     break;
   default:
     break;
@@ -557,8 +652,8 @@ std::string build_description(Job &job)
   } else if (o.camera_left || o.camera_right) {
     if (!o.camera_left || !o.camera_right)
       usage_error("--camera-left and --camera-right go together");
-    left = camera_source(o.camera_left, o);
-    right = camera_source(o.camera_right, o);
+    left = camera_source(o.camera_left, "left", o);
+    right = camera_source(o.camera_right, "right", o);
     job.total_frames = o.frames;
     if (o.frames > 0)
       job.stop_after = guint64(o.frames);
@@ -658,6 +753,13 @@ int run(int argc, char **argv)
        "Cameras: pairs waiting for the analysis; older ones are dropped when it falls behind "
        "(8)",
        "N"},
+      {"camera-timeout", 0, 0, G_OPTION_ARG_INT, &o.camera_timeout_ms,
+       "Cameras: a camera that sent no frame for this long is lost and reopened, ms (2000)",
+       "MS"},
+      {"reconnect", 0, 0, G_OPTION_ARG_INT, &o.reconnect_ms,
+       "Cameras: first wait before reopening a lost camera, doubled per failed attempt up to "
+       "8 s, ms; 0 = a lost camera ends the run with its error (500)",
+       "MS"},
       {"calibration", 'c', 0, G_OPTION_ARG_FILENAME, &o.calibration,
        "Stereo calibration (OpenCV YAML/XML or 'left.yaml;right.yaml')", "FILE"},
       {"no-rectify", 0, 0, G_OPTION_ARG_NONE, &o.no_rectify,
@@ -737,6 +839,10 @@ int run(int argc, char **argv)
     usage_error("choose one input: --synthetic, --left/--right or --camera-left/--camera-right");
   if (o.pair_queue < 1)
     usage_error("--pair-queue must be at least 1");
+  if (o.camera_timeout_ms < 100 || o.camera_timeout_ms > 600000)
+    usage_error("--camera-timeout must be 100..600000 ms");
+  if (o.reconnect_ms < 0 || o.reconnect_ms > 600000)
+    usage_error("--reconnect must be 0 (no reconnecting) or up to 600000 ms");
   if (o.bands < 1 || o.bands > 64)
     usage_error("--bands must be 1..64");
   if (o.smoothing < 0 || o.smoothing >= 1)
@@ -863,6 +969,8 @@ int run(int argc, char **argv)
     g_main_loop_run(job.loop);
   }
   g_source_remove(sig);
+  if (job.lost_timer)
+    g_source_remove(job.lost_timer);
   gst_element_set_state(job.pipeline, GST_STATE_NULL);
   gst_object_unref(job.pipeline);
   g_main_loop_unref(job.loop);
@@ -877,6 +985,11 @@ int run(int argc, char **argv)
                job.frames, job.present, job.n_trees, elapsed,
                elapsed > 0 ? job.frames / elapsed : 0.0,
                o.record ? ", video: " : "", o.record ? o.record : "");
+  if (job.n_camera_lost > 0)
+    std::fprintf(stderr,
+                 "treestereo-measure: cameras missing: %" G_GUINT64_FORMAT
+                 " camera-lost lines, %" G_GUINT64_FORMAT " returns\n",
+                 job.n_camera_lost, job.n_camera_back);
   if (!job.temp_calibration.empty()) {
     g_unlink(job.temp_calibration.c_str());
     gchar *dir = g_path_get_dirname(job.temp_calibration.c_str());

@@ -16,6 +16,7 @@ static gboolean plugin_init(GstPlugin *plugin)
   ret |= GST_ELEMENT_REGISTER(treeoverlay, plugin);
   ret |= GST_ELEMENT_REGISTER(exgsegment, plugin);
   ret |= GST_ELEMENT_REGISTER(spraycontrol, plugin);
+  ret |= GST_ELEMENT_REGISTER(treecamerasrc, plugin);
   return ret;
 }
 

@@ -11,7 +11,7 @@
 /* Elements the plugin must hold at least (exgsegment joins when merged). */
 static const gchar *const required_elements[] = {
   "treetestsrc", "stereorectify", "siftmatch", "stereodepth", "treemetrics", "treeoverlay",
-  "spraycontrol",
+  "spraycontrol", "treecamerasrc",
 };
 
 /* Fills @v (initialised to the spec's type) with a value just outside @p's range, below the

@@ -6,7 +6,8 @@
 #     --scene and --canopy reach treetestsrc and stereodepth (canopy_mode in the JSON);
 #     a drive-by: the position since the start, tree records and the row map against the truth;
 #  2. the committed image sequences with their calibration, as files and as MP4 videos;
-#  3. usage errors exit 2 (also an unknown --scene or --canopy, --scene without --synthetic),
+#  3. usage errors exit 2 (also an unknown --scene or --canopy, --scene without --synthetic,
+#     --camera-timeout or --reconnect out of range),
 #     pipeline errors exit 1 with a message naming the problem;
 #  4. Ctrl-C finishes the files: the recording plays and holds every measured frame.
 # Exit 77 (skipped) when the H.264 encoder/decoder is not installed.
@@ -184,6 +185,12 @@ check_json "$tmp/v.jsonl" 8 1 "" || fail "video file JSON"
 "$measure" --left "$fx/left_%04d.jpg" --right "$fx/right_%04d.jpg" --calibration \
   "$fx/calibration.yml" --scene lab >"$tmp/e.out" 2>&1
 [ $? -eq 2 ] && grep -q -- "--scene" "$tmp/e.out" || fail "--scene with files: $(cat "$tmp/e.out")"
+"$measure" --camera-left 127.0.0.9 --camera-right 127.0.0.10 --calibration "$fx/calibration.yml" \
+  --camera-timeout 50 >"$tmp/e.out" 2>&1
+[ $? -eq 2 ] && grep -q -- "--camera-timeout" "$tmp/e.out" || fail "--camera-timeout 50: $(cat "$tmp/e.out")"
+"$measure" --camera-left 127.0.0.9 --camera-right 127.0.0.10 --calibration "$fx/calibration.yml" \
+  --reconnect -5 >"$tmp/e.out" 2>&1
+[ $? -eq 2 ] && grep -q -- "--reconnect" "$tmp/e.out" || fail "--reconnect -5: $(cat "$tmp/e.out")"
 echo "not a calibration" >"$tmp/bad.yml"
 "$measure" --left "$fx/left_%04d.jpg" --right "$fx/right_%04d.jpg" --calibration "$tmp/bad.yml" \
   --quiet >"$tmp/e.out" 2>&1
