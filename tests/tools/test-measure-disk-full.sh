@@ -9,7 +9,9 @@
 #  3. a disk already full: tree records (--trees) and nozzle-section commands (--sections),
 #     written from the main loop, each stop the job with the error naming their file; the JSON
 #     lines on a disk with room stay whole;
-#  4. the CSV header on a full disk: refused before the pipeline starts.
+#  4. the CSV header on a full disk: refused before the pipeline starts;
+#  5. the row map (--row-map, written at the end by treemetrics) on a full disk: exit status 1,
+#     the error names the file and the full disk.
 # Exit 77 (skipped) where a tmpfs cannot be mounted (no user namespaces) or H.264 is missing.
 set -uo pipefail
 measure=${1:?usage: test-measure-disk-full.sh TREESTEREO_MEASURE}
@@ -104,4 +106,10 @@ rc=$(PREFILL=1 on_small_disk csv --synthetic --frames 5 --size 320x240 --quiet -
 expect_stop csv "$rc" "$disk/c\.csv"
 ! grep -q ' frames (' "$tmp/saved/csv.out" || fail "csv: the pipeline ran"
 
-echo "OK: full disk: '$err1' after $lines frames ($frames in the recording); --points: $plines whole lines; --trees, --sections, the CSV header"
+# 5. the row map at the end
+rc=$(PREFILL=1 on_small_disk map --synthetic --frames 5 --size 320x240 --quiet --row-map "$disk/map.csv")
+[ "$rc" -eq 1 ] || { cat "$tmp/saved/map.out"; fail "map: exit status $rc, expected 1"; }
+grep -qF "Could not write the row map to \"$disk/map.csv\"" "$tmp/saved/map.out" &&
+  grep -q "No space left on device" "$tmp/saved/map.out" || { cat "$tmp/saved/map.out"; fail "map: no error naming the file and the full disk"; }
+
+echo "OK: full disk: '$err1' after $lines frames ($frames in the recording); --points: $plines whole lines; --trees, --sections, the CSV header, the row map"
