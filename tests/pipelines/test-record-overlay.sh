@@ -66,12 +66,12 @@ kill -KILL $pid
 wait $pid 2>/dev/null
 whole=$(fragments "$tmp/killed.mp4")
 [ "$whole" -ge 4 ] || { echo "FAIL: $whole fragments before the kill"; exit 1; }
-killed=$(gst-launch-1.0 -v filesrc location="$tmp/killed.mp4" ! qtdemux ! h264parse ! avdec_h264 ! \
+killed=$(timeout 60 gst-launch-1.0 -v filesrc location="$tmp/killed.mp4" ! qtdemux ! h264parse ! avdec_h264 ! \
   fakesink sync=false silent=false 2>&1 | grep -c 'last-message = chain')
 # the last fragment counted may be cut; every one before it is whole
 if [ "$killed" -lt $(((whole - 1) * 25)) ]; then
   echo "FAIL: after SIGKILL with $whole fragments written the recording decodes to $killed frames"; exit 1
 fi
-gst-launch-1.0 -q filesrc location="$tmp/killed.mp4" ! qtdemux ! h264parse ! avdec_h264 ! fakesink \
+timeout 60 gst-launch-1.0 -q filesrc location="$tmp/killed.mp4" ! qtdemux ! h264parse ! avdec_h264 ! fakesink \
   >"$tmp/decode.log" 2>&1 || { cat "$tmp/decode.log"; echo "FAIL: the killed recording does not decode without error"; exit 1; }
 echo "OK: $duration, $frames frames decoded; killed after $whole fragments: $killed frames decoded"

@@ -80,7 +80,7 @@ rows = text.splitlines()
 n = len(rows[0].split(","))
 assert all(len(r.split(",")) == n for r in rows), "a CSV row without all its cells"
 PY
-frames=$(gst-launch-1.0 -v filesrc location="$tmp/saved/rec/r.mp4" ! qtdemux ! h264parse ! avdec_h264 ! \
+frames=$(timeout 60 gst-launch-1.0 -v filesrc location="$tmp/saved/rec/r.mp4" ! qtdemux ! h264parse ! avdec_h264 ! \
   fakesink sync=false silent=false 2>&1 | grep -c 'last-message = chain')
 [ "$frames" -ge 1 ] && [ "$frames" -le "$lines" ] || fail "rec: the recording on the full disk decodes to $frames frames ($lines measured)"
 err1=$(grep '^treestereo-measure: cannot write' "$tmp/saved/rec.out" | head -1)

@@ -19,7 +19,7 @@ fail() { echo "FAIL: $*"; exit 1; }
 fps=7 # the synthetic default: a fragment (1 s) is 7 frames
 
 decoded_frames() {
-  gst-launch-1.0 -v filesrc location="$1" ! qtdemux ! h264parse ! avdec_h264 ! \
+  timeout 60 gst-launch-1.0 -v filesrc location="$1" ! qtdemux ! h264parse ! avdec_h264 ! \
     fakesink sync=false silent=false 2>&1 | grep -c 'last-message = chain'
 }
 
