@@ -26,7 +26,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fcntl.h>
-#include <iostream>
+#include <stdexcept>
 #include <sstream>
 #include <string>
 #include <sys/stat.h>
