@@ -2,7 +2,7 @@
 # treestereo-measure on a disk that fills up (docs/reliability.md, "Faults of the outputs"): a
 # 300 KB tmpfs mounted in a user and mount namespace (unshare -rm) stands for the disk.
 #  1. recording, JSON and CSV there until full: an error "cannot write FILE: No space left on
-#     device" naming one of them, exit status 1 (no signal, no hang: 120 s timeout), every
+#     device" naming one of them, exit status 1 (no signal, no hang: 240 s timeout), every
 #     JSON line and CSV row written is whole, the recording decodes up to where the disk ended;
 #  2. large JSON lines (--points) alone: the error names the JSON file, the file ends with the
 #     last whole line (a line cut by the full disk is taken back);
@@ -40,7 +40,7 @@ on_small_disk() { # name args...
     disk=$1 saved=$2; shift 2
     mount -t tmpfs -o size=300k tmpfs "$disk" || exit 90
     if [ "${PREFILL:-0}" = 1 ]; then dd if=/dev/zero of="$disk/fill" bs=4096 2>/dev/null; fi
-    timeout 120 "$@"
+    timeout 240 "$@"
     rc=$?
     for f in "$disk"/*; do [ "$f" = "$disk/fill" ] || cp "$f" "$saved/" 2>/dev/null; done
     exit $rc' sh "$disk" "$tmp/saved/$name" "$measure" "$@" >"$tmp/saved/$name.out" 2>&1
@@ -67,8 +67,8 @@ expect_stop() { # name rc file-pattern: exit status 1 and the error naming the f
     cat "$tmp/saved/$name.out"; fail "$name: no error 'cannot write $pattern: No space left on device'"; }
 }
 
-# 1. recording, JSON and CSV until the disk is full (at 200 kbit/s, a few fragments fit)
-rc=$(on_small_disk rec --synthetic --frames 100000 --size 320x240 --bitrate 200 --quiet \
+# 1. recording, JSON and CSV until the disk is full (at 400 kbit/s, a few fragments fit)
+rc=$(on_small_disk rec --synthetic --frames 100000 --size 320x240 --bitrate 400 --quiet \
   --json "$disk/r.jsonl" --csv "$disk/r.csv" --record "$disk/r.mp4")
 expect_stop rec "$rc" "$disk/r\.(mp4|jsonl|csv)"
 lines=$(whole_json "$tmp/saved/rec/r.jsonl") || fail "rec: JSON lines cut by the full disk"
