@@ -4,7 +4,7 @@
 #     every measured frame and ends with its seek index (mfra);
 #  2. killed with SIGKILL after several fragments (as a power cut stops it), the recording still
 #     decodes, to the frames the JSON says were measured less at most one fragment (a second)
-#     and the frames on their way to the encoder; every JSON line is whole JSON, every CSV row
+#     and 2 frames on their way to the encoder; every JSON line is whole JSON, every CSV row
 #     whole, frames numbered without a gap.
 # Exit 77 (skipped) when the H.264 encoder/decoder is not installed.
 set -uo pipefail
@@ -88,9 +88,10 @@ print(f"{len(frames)} JSON lines, {len(rows) - 1} CSV rows, all whole")
 PY
 lines=$(wc -l <"$tmp/k.jsonl")
 n=$(decoded_frames "$tmp/k.mp4")
-# lost: the fragment being filled (up to fps + 1 frames) and a few frames between the JSON
-# writer and the muxer (the recording branch's queue, the encoder)
-slack=$((fps + 1 + 4))
+# lost: the fragment being filled (a second: fps frames; mp4mux writes it out when the next
+# frame would make it longer) and a frame or two between the JSON writer and the muxer (the
+# recording branch's queue, the encoder)
+slack=$((fps + 2))
 [ "$n" -le "$lines" ] && [ "$n" -ge $((lines - slack)) ] || {
   mp4_boxes "$tmp/k.mp4" | uniq -c
   fail "after SIGKILL the recording decodes to $n frames, $lines were measured (at most $slack may be missing)"
