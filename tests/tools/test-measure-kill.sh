@@ -58,7 +58,7 @@ boxes=$(mp4_boxes "$tmp/e.mp4" | tr '\n' ' ')
 "$measure" --synthetic --frames 100000 --size 320x240 --json "$tmp/k.jsonl" --csv "$tmp/k.csv" \
   --record "$tmp/k.mp4" --quiet >"$tmp/k.out" 2>&1 &
 pid=$!
-for _ in $(seq 1 1200); do
+for _ in $(seq 1 2400); do
   [ -f "$tmp/k.jsonl" ] && [ "$(wc -l <"$tmp/k.jsonl")" -ge 40 ] && break
   kill -0 $pid 2>/dev/null || { cat "$tmp/k.out"; fail "treestereo-measure ended before the kill"; }
   sleep 0.1
