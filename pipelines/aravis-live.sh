@@ -16,7 +16,8 @@
 #   GST_LAUNCH_FLAGS                                  (-e; tests add -m)
 #   RECORD_DIR    also record into this folder: each camera's raw frames as JPEG
 #                 (left_%05d.jpg, right_%05d.jpg: treestereo-measure --left/--right replays
-#                 them) and the annotated side-by-side video annotated.mp4
+#                 them) and the annotated side-by-side video annotated.mp4, a fragmented
+#                 MP4 that plays up to its last second after a kill or a power cut
 #                 (pipelines/aravis-record.sh sets it)
 #
 # Timing (docs/aravis.md): do-timestamp=true stamps each frame with the pipeline clock when
@@ -52,10 +53,12 @@ camera() {  # $1 camera name, $2 stereorectify pad
 }
 if [ -n "$record" ]; then
   mkdir -p "$record"
-  # the annotated side-by-side video beside what $SINK shows
+  # the annotated side-by-side video beside what $SINK shows: a fragmented MP4 (a fragment a
+  # second, written synchronously) that plays up to its last second after a kill or a power cut
   output="treeoverlay ! tee name=shown ! queue ! videoconvert ! video/x-raw,format=I420 ! \
-    x264enc tune=zerolatency speed-preset=veryfast ! h264parse ! mp4mux ! \
-    filesink location=\"$record/annotated.mp4\" shown. ! queue ! $sink"
+    x264enc tune=zerolatency speed-preset=veryfast ! h264parse ! mp4mux fragment-duration=1000 ! \
+    filesink location=\"$record/annotated.mp4\" buffer-mode=unbuffered o-sync=true \
+    shown. ! queue ! $sink"
 else
   output="treeoverlay views=left ! $sink"
 fi

@@ -1,10 +1,14 @@
 // treestereo-measure: the measuring job. Builds the whole pipeline
 //   sources -> stereorectify -> exgsegment -> siftmatch -> stereodepth -> treemetrics
-//   [-> treeoverlay -> x264enc -> mp4mux -> file]
+//   [-> treeoverlay -> x264enc -> mp4mux (fragmented) -> file]
 // from its inputs (the synthetic orchard, image sequences, video files or two Aravis cameras),
 // and writes one JSON object (and/or CSV row) per stereo frame, a one-line summary per frame
-// on the terminal, and optionally an annotated video. Ctrl-C ends the stream cleanly (EOS), so
-// a recording is always playable.
+// on the terminal, and optionally an annotated video. Ctrl-C ends the stream cleanly (EOS): the
+// recording gets its duration and seek index. The recording is a fragmented MP4 written
+// synchronously, a fragment a second, so after a SIGKILL or a power cut it still plays up to
+// its last second or so; JSON and CSV lines go out whole, one write each (docs/reliability.md).
+// An output that cannot be written (missing folder, disk full) is an error naming the file:
+// at the start before the pipeline runs, later it stops the measuring with exit status 1.
 #include "treestereo/calibration.hpp"
 #include "treestereo/json.hpp"
 #include "treestereo/rowmap.hpp"
@@ -16,15 +20,17 @@
 #include <glib-unix.h>
 #include <glib/gstdio.h>
 
+#include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
-#include <iostream>
-#include <memory>
+#include <fcntl.h>
+#include <stdexcept>
 #include <sstream>
 #include <string>
+#include <sys/stat.h>
 #include <unistd.h>
 
 using namespace treestereo;
@@ -87,8 +93,9 @@ const gchar *kSummary =
     "A camera that drops out is reopened (--camera-timeout, --reconnect); meanwhile the JSON\n"
     "output gets {\"status\":\"camera-lost\",...} lines, one per second.\n"
     "\n"
-    "Exit status: 0 when the stream ended normally (or by Ctrl-C), 1 on a pipeline error\n"
-    "(also a lost camera with --reconnect 0), 2 on a usage error.";
+    "Exit status: 0 when the stream ended normally (or by Ctrl-C), 1 on a pipeline error (also\n"
+    "a lost camera with --reconnect 0) or an output that cannot be written (disk full), 2 on a\n"
+    "usage error.";
 
 [[noreturn]] void usage_error(const std::string &msg)
 {
@@ -167,7 +174,101 @@ std::string camera_source(const std::string &name, const char *side, const Optio
   return s.str();
 }
 
+// An output of lines (JSON lines, CSV): a file, or stdout for '-'. Each line goes out whole in
+// one write(2), so a SIGKILL cuts no line; when a write fails (disk full, I/O error) the file is
+// cut back to its last whole line.
+class LineOutput {
+public:
+  LineOutput() = default;
+  LineOutput(const LineOutput &) = delete;
+  LineOutput &operator=(const LineOutput &) = delete;
+  ~LineOutput()
+  {
+    if (fd_ >= 0)
+      close(fd_);
+  }
+
+  // Creates (truncates) the file, or takes stdout for "-"; throws naming the file and why.
+  void open(const char *path)
+  {
+    path_ = path;
+    if (path_ == "-")
+      return;
+    fd_ = ::open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd_ < 0)
+      throw std::runtime_error("cannot write " + path_ + ": " + g_strerror(errno));
+  }
+  explicit operator bool() const { return !path_.empty(); }
+  bool is_stdout() const { return path_ == "-"; }
+  const std::string &path() const { return path_; }
+
+  // Writes a line (with its '\n'). False with errno set when it could not; the file then ends
+  // with the last whole line.
+  bool put(const std::string &line)
+  {
+    if (fd_ < 0) { // stdout: through stdio, in order with the summary lines
+      if (std::fwrite(line.data(), 1, line.size(), stdout) == line.size() &&
+          std::fflush(stdout) == 0)
+        return true;
+      if (errno == 0)
+        errno = EIO;
+      return false;
+    }
+    std::size_t done = 0;
+    while (done < line.size()) {
+      const ssize_t n = ::write(fd_, line.data() + done, line.size() - done);
+      if (n < 0 && errno == EINTR)
+        continue;
+      if (n <= 0) {
+        const int e = n < 0 ? errno : ENOSPC;
+        if (done > 0 && ftruncate(fd_, whole_) == 0)
+          lseek(fd_, whole_, SEEK_SET);
+        errno = e;
+        return false;
+      }
+      done += std::size_t(n);
+    }
+    whole_ += off_t(line.size());
+    return true;
+  }
+
+private:
+  std::string path_; // empty: no such output
+  int fd_ = -1;
+  off_t whole_ = 0; // bytes of whole lines in the file
+};
+
+// Fails (throws naming the file and why) unless PATH can be written, without changing it: the
+// outputs an element writes later (--record, --row-map) are checked before the pipeline starts.
+void check_writable(const std::string &path)
+{
+  int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+  bool created = false;
+  if (fd < 0 && errno == ENOENT) {
+    fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    created = fd >= 0;
+  }
+  if (fd < 0)
+    throw std::runtime_error("cannot write " + path + ": " + g_strerror(errno));
+  close(fd);
+  if (created)
+    g_unlink(path.c_str());
+}
+
 struct Job {
+  Job() = default;
+  Job(const Job &) = delete;
+  Job &operator=(const Job &) = delete;
+  ~Job()
+  {
+    if (!temp_calibration.empty()) {
+      g_unlink(temp_calibration.c_str());
+      gchar *dir = g_path_get_dirname(temp_calibration.c_str());
+      g_rmdir(dir);
+      g_free(dir);
+    }
+  }
+
   Options o;
   std::string calibration; // path used by stereorectify
   std::string temp_calibration;
@@ -175,16 +276,17 @@ struct Job {
   int total_frames = -1; // when known
   GstElement *pipeline = nullptr;
   GMainLoop *loop = nullptr;
-  std::unique_ptr<std::ofstream> json_file, csv_file, trees_file, sections_file;
-  std::ostream *json = nullptr;
-  std::ostream *trees = nullptr;
+  LineOutput json; // written from the streaming thread (on_result)
+  LineOutput trees;
   guint64 n_trees = 0;
-  std::ostream *sections = nullptr; // spraycontrol's commands, one JSON line each
+  LineOutput sections; // spraycontrol's commands, one JSON line each
   guint64 n_commands = 0;
-  std::ostream *csv = nullptr;
+  LineOutput csv; // written from the streaming thread (on_result)
   guint64 frames = 0, present = 0;
   guint64 stop_after = 0; // live cameras: pairs to measure before ending the stream (0: all)
   bool error = false, interrupted = false;
+  std::atomic<bool> output_failed{false}; // an output could not be written: the job stops
+  guint output_timeout = 0;               // ends the main loop should the EOS not get through
   std::chrono::steady_clock::time_point start;
   // live cameras: which one is missing (treecamerasrc's treestereo-camera messages)
   bool camera_lost[2] = {false, false};
@@ -238,9 +340,10 @@ void write_metrics_json(JsonWriter &w, const GstTreeStereoMetrics &m)
       .field("confidence", m.confidence);
 }
 
-void write_json(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
+bool write_json(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
 {
-  JsonWriter w(*job.json);
+  std::ostringstream line;
+  JsonWriter w(line);
   w.begin_object().field("frame", static_cast<unsigned long long>(job.frames));
   if (GST_BUFFER_PTS_IS_VALID(buf))
     w.field("pts_ns", static_cast<unsigned long long>(GST_BUFFER_PTS(buf)));
@@ -287,17 +390,16 @@ void write_json(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
         .end_object();
   }
   w.end_object();
-  *job.json << "\n";
-  job.json->flush();
+  line << "\n";
+  return job.json.put(line.str());
 }
 
 const char *kCsvHeader = "frame,pts_ns,tree_present,distance_m,height_m,width_m,thickness_m,"
                          "area_m2,perimeter_m,complexity,centroid_x_m,centroid_y_m,centroid_z_m,"
                          "clipped,n_points,n_matches,confidence";
 
-void write_csv(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
+bool write_csv(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
 {
-  std::ostream &c = *job.csv;
   char line[512];
   const GstClockTime pts = GST_BUFFER_PTS(buf);
   if (!mm || !mm->metrics.tree_present) {
@@ -313,8 +415,7 @@ void write_csv(Job &job, GstBuffer *buf, const GstTreeStereoMetricsMeta *mm)
                   m.complexity, m.centroid_m[0], m.centroid_m[1], m.centroid_m[2], m.clipped,
                   m.n_points, m.n_matches, m.confidence);
   }
-  c << line;
-  c.flush();
+  return job.csv.put(line);
 }
 
 void print_progress(Job &job, const GstTreeStereoMetricsMeta *mm)
@@ -333,7 +434,7 @@ void print_progress(Job &job, const GstTreeStereoMetricsMeta *mm)
                  job.total_frames, eta);
     std::fflush(stderr);
   }
-  if (job.o.quiet || job.json == &std::cout)
+  if (job.o.quiet || job.json.is_stdout())
     return;
   if (tty && job.total_frames > 0)
     std::fprintf(stderr, "\r%*s\r", 60, "");
@@ -363,18 +464,55 @@ gboolean send_eos(gpointer data)
   return G_SOURCE_REMOVE;
 }
 
+gboolean quit_after_output_error(gpointer data)
+{
+  Job &job = *static_cast<Job *>(data);
+  job.output_timeout = 0;
+  std::fprintf(stderr, "treestereo-measure: the stream did not end within 10 s, stopping\n");
+  g_main_loop_quit(job.loop);
+  return G_SOURCE_REMOVE;
+}
+
+// After an output failed: EOS, so the other outputs and the recording end properly where the
+// disk allows; the main loop ends within 10 s should the EOS not get through.
+gboolean stop_after_output_error(gpointer data)
+{
+  Job &job = *static_cast<Job *>(data);
+  gst_element_send_event(job.pipeline, gst_event_new_eos());
+  job.output_timeout = g_timeout_add_seconds(10, quit_after_output_error, &job);
+  return G_SOURCE_REMOVE;
+}
+
+// An output could not be written (disk full, I/O error): says which and why, writes nothing
+// more and stops the measuring (exit status 1). Any thread.
+void output_failed(Job &job, const LineOutput &out, int err)
+{
+  if (job.output_failed.exchange(true))
+    return;
+  std::fprintf(stderr, "\ntreestereo-measure: cannot write %s: %s\n",
+               out.is_stdout() ? "stdout" : out.path().c_str(), g_strerror(err));
+  g_idle_add(stop_after_output_error, &job);
+}
+
 GstPadProbeReturn on_result(GstPad *, GstPadProbeInfo *info, gpointer data)
 {
   Job &job = *static_cast<Job *>(data);
   // pairs already on their way when the N-th came out are not measured results
   if (job.stop_after > 0 && job.frames >= job.stop_after)
     return GST_PAD_PROBE_DROP;
+  // nor are those after an output failed: the outputs end at the same frame
+  if (job.output_failed)
+    return GST_PAD_PROBE_DROP;
   GstBuffer *buf = GST_PAD_PROBE_INFO_BUFFER(info);
   const GstTreeStereoMetricsMeta *mm = gst_buffer_get_tree_stereo_metrics_meta(buf);
-  if (job.json)
-    write_json(job, buf, mm);
-  if (job.csv)
-    write_csv(job, buf, mm);
+  if (job.json && !write_json(job, buf, mm)) {
+    output_failed(job, job.json, errno);
+    return GST_PAD_PROBE_DROP;
+  }
+  if (job.csv && !write_csv(job, buf, mm)) {
+    output_failed(job, job.csv, errno);
+    return GST_PAD_PROBE_DROP;
+  }
   print_progress(job, mm);
   job.frames++;
   if (mm && mm->metrics.tree_present)
@@ -432,7 +570,8 @@ TreeRecord record_of(const GstTreeStereoTreeRecord &r)
 void on_section(Job &job, GstMessage *msg)
 {
   const GstStructure *st = gst_message_get_structure(msg);
-  if (!st || !gst_structure_has_name(st, GST_TREE_STEREO_MESSAGE_SECTION) || !job.sections)
+  if (!st || !gst_structure_has_name(st, GST_TREE_STEREO_MESSAGE_SECTION) || !job.sections ||
+      job.output_failed)
     return;
   GstTreeStereoSectionCommand c;
   if (!gst_tree_stereo_section_message_parse(st, &c))
@@ -449,8 +588,9 @@ void on_section(Job &job, GstMessage *msg)
   if (c.fallback)
     w.field("fallback", true); // the fail-safe's, after a gap in the frames
   w.end_object();
-  *job.sections << line.str() << "\n";
-  job.sections->flush();
+  line << "\n";
+  if (!job.sections.put(line.str()))
+    output_failed(job, job.sections, errno);
 }
 
 // treemetrics' tree records: one JSON line each (--trees) and a line of the summary.
@@ -463,11 +603,9 @@ void on_tree(Job &job, GstMessage *msg)
   if (!gst_tree_stereo_tree_message_parse(st, &r, nullptr))
     return;
   job.n_trees++;
-  if (job.trees) {
-    *job.trees << to_json(record_of(r)) << "\n";
-    job.trees->flush();
-  }
-  if (!job.o.quiet && job.json != &std::cout && job.trees != &std::cout) {
+  if (job.trees && !job.output_failed && !job.trees.put(to_json(record_of(r)) + "\n"))
+    output_failed(job, job.trees, errno);
+  if (!job.o.quiet && !job.json.is_stdout() && !job.trees.is_stdout()) {
     const char *what = r.mode == GST_TREE_STEREO_CANOPY_ROW ? "canopy" : "tree";
     std::printf("%s %u at %.2f m along the row (%.2f-%.2f m)", what, r.id, r.position_m,
                 r.start_m, r.end_m);
@@ -518,8 +656,9 @@ void write_camera_status(Job &job, int side, bool lost, GstClockTime running, do
   if (!lost)
     w.field("gap_s", gap_s);
   w.end_object();
-  *job.json << line.str() << "\n";
-  job.json->flush();
+  line << "\n";
+  if (!job.json.put(line.str()))
+    output_failed(job, job.json, errno);
 }
 
 // While a camera is missing: one camera-lost line per second for each missing camera.
@@ -580,8 +719,15 @@ gboolean on_bus(GstBus *, GstMessage *msg, gpointer data)
     GError *err = nullptr;
     gchar *dbg = nullptr;
     gst_message_parse_error(msg, &err, &dbg);
-    std::fprintf(stderr, "\ntreestereo-measure: error from %s: %s\n", GST_OBJECT_NAME(msg->src),
-                 err->message);
+    if (job.o.record && std::strcmp(GST_OBJECT_NAME(msg->src), "recording") == 0) {
+      // the recording's filesink: name the file (its disk-full error does not)
+      const bool full = g_error_matches(err, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_NO_SPACE_LEFT);
+      std::fprintf(stderr, "\ntreestereo-measure: cannot write %s: %s\n", job.o.record,
+                   full ? g_strerror(ENOSPC) : err->message);
+    } else {
+      std::fprintf(stderr, "\ntreestereo-measure: error from %s: %s\n",
+                   GST_OBJECT_NAME(msg->src), err->message);
+    }
     if (dbg)
       std::fprintf(stderr, "  (%s)\n", dbg);
     g_error_free(err);
@@ -705,8 +851,12 @@ std::string build_description(Job &job)
     d << " ! tee name=t t. ! queue ! fakesink name=results sync=false async=false"
       << " t. ! queue ! treeoverlay ! videoconvert ! video/x-raw,format=I420 ! x264enc bitrate="
       << o.bitrate
-      << " speed-preset=veryfast tune=zerolatency ! h264parse ! mp4mux ! filesink location="
-      << quoted(o.record);
+      << " speed-preset=veryfast tune=zerolatency ! h264parse"
+      // fragmented, a fragment a second, each write synchronous: after a SIGKILL or a power cut
+      // the file plays up to its last second or so; at EOS mp4mux adds the duration and the
+      // seek index (docs/reliability.md)
+      << " ! mp4mux fragment-duration=1000 ! filesink name=recording buffer-mode=unbuffered"
+      << " o-sync=true location=" << quoted(o.record);
   } else {
     d << " ! fakesink name=results sync=false";
   }
@@ -812,7 +962,9 @@ int run(int argc, char **argv)
        "M/S"},
       {"points", 0, 0, G_OPTION_ARG_NONE, &o.points, "Add the 3D points to the JSON", nullptr},
       {"matches", 0, 0, G_OPTION_ARG_NONE, &o.matches, "Add the matches to the JSON", nullptr},
-      {"record", 'r', 0, G_OPTION_ARG_FILENAME, &o.record, "Annotated video (MP4, H.264)",
+      {"record", 'r', 0, G_OPTION_ARG_FILENAME, &o.record,
+       "Annotated video (fragmented MP4, H.264: plays up to its last second after a crash or "
+       "power cut)",
        "FILE"},
       {"bitrate", 0, 0, G_OPTION_ARG_INT, &o.bitrate, "Recording bitrate, kbit/s (4000)", "KBPS"},
       {"quiet", 'q', 0, G_OPTION_ARG_NONE, &o.quiet, "No per-frame summary", nullptr},
@@ -886,45 +1038,25 @@ int run(int argc, char **argv)
     job.calibration = o.calibration;
   }
 
-  if (o.json) {
-    if (std::string(o.json) == "-") {
-      job.json = &std::cout;
-    } else {
-      job.json_file = std::make_unique<std::ofstream>(o.json);
-      if (!*job.json_file)
-        throw std::runtime_error(std::string("cannot write ") + o.json);
-      job.json = job.json_file.get();
-    }
-  }
-  if (o.trees) {
-    if (std::string(o.trees) == "-") {
-      job.trees = &std::cout;
-    } else {
-      job.trees_file = std::make_unique<std::ofstream>(o.trees);
-      if (!*job.trees_file)
-        throw std::runtime_error(std::string("cannot write ") + o.trees);
-      job.trees = job.trees_file.get();
-    }
-  }
-  if (o.sections) {
-    if (std::string(o.sections) == "-") {
-      job.sections = &std::cout;
-    } else {
-      job.sections_file = std::make_unique<std::ofstream>(o.sections);
-      if (!*job.sections_file)
-        throw std::runtime_error(std::string("cannot write ") + o.sections);
-      job.sections = job.sections_file.get();
-    }
-  }
   if (o.rig_speed < 0 || !std::isfinite(o.rig_speed))
     usage_error("--rig-speed must be 0 (measured) or a speed in m/s");
+  // every output is checked before the pipeline starts: a missing folder or a read-only disk
+  // is an error naming the file, not a run whose results go nowhere
+  if (o.json)
+    job.json.open(o.json);
+  if (o.trees)
+    job.trees.open(o.trees);
+  if (o.sections)
+    job.sections.open(o.sections);
   if (o.csv) {
-    job.csv_file = std::make_unique<std::ofstream>(o.csv);
-    if (!*job.csv_file)
-      throw std::runtime_error(std::string("cannot write ") + o.csv);
-    job.csv = job.csv_file.get();
-    *job.csv << kCsvHeader << "\n";
+    job.csv.open(o.csv);
+    if (!job.csv.put(std::string(kCsvHeader) + "\n"))
+      throw std::runtime_error(std::string("cannot write ") + o.csv + ": " + g_strerror(errno));
   }
+  if (o.record)
+    check_writable(o.record);
+  if (o.row_map)
+    check_writable(o.row_map);
 
   ensure_plugin();
   const std::string desc = build_description(job);
@@ -975,6 +1107,9 @@ int run(int argc, char **argv)
   gst_object_unref(job.pipeline);
   g_main_loop_unref(job.loop);
 
+  if (job.output_timeout)
+    g_source_remove(job.output_timeout);
+
   const double elapsed =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - job.start).count();
   if (isatty(STDERR_FILENO) && job.total_frames > 0)
@@ -990,13 +1125,7 @@ int run(int argc, char **argv)
                  "treestereo-measure: cameras missing: %" G_GUINT64_FORMAT
                  " camera-lost lines, %" G_GUINT64_FORMAT " returns\n",
                  job.n_camera_lost, job.n_camera_back);
-  if (!job.temp_calibration.empty()) {
-    g_unlink(job.temp_calibration.c_str());
-    gchar *dir = g_path_get_dirname(job.temp_calibration.c_str());
-    g_rmdir(dir);
-    g_free(dir);
-  }
-  return job.error ? 1 : 0;
+  return job.error || job.output_failed ? 1 : 0;
 }
 
 } // namespace

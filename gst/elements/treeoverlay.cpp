@@ -30,7 +30,8 @@
  * |[
  * gst-launch-1.0 -e videotestsrc num-buffers=30 ! video/x-raw,format=RGB,width=640,height=240 ! \
  *   capssetter caps="video/x-raw,multiview-mode=side-by-side" ! treeoverlay ! videoconvert ! \
- *   video/x-raw,format=I420 ! x264enc ! mp4mux ! filesink location=out.mp4
+ *   video/x-raw,format=I420 ! x264enc bframes=0 ! mp4mux fragment-duration=1000 ! \
+ *   filesink location=out.mp4 buffer-mode=unbuffered o-sync=true
  * ]|
  * |[
  * gst-launch-1.0 stereorectify name=r calibration=rig.yml ! exgsegment ! siftmatch ! \
