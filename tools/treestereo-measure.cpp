@@ -849,7 +849,7 @@ std::string build_description(Job &job)
   }
   if (o.record) {
     d << " ! tee name=t t. ! queue ! fakesink name=results sync=false async=false"
-      << " t. ! queue ! treeoverlay ! videoconvert ! video/x-raw,format=I420 ! x264enc bitrate="
+      << " t. ! queue ! treeoverlay draw-map=true ! videoconvert ! video/x-raw,format=I420 ! x264enc bitrate="
       << o.bitrate
       << " speed-preset=veryfast tune=zerolatency ! h264parse"
       // fragmented, a fragment a second, each write synchronous: after a SIGKILL or a power cut

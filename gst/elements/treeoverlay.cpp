@@ -47,10 +47,12 @@
 #include "elements.hpp"
 
 #include "treestereo/overlay.hpp"
+#include "treestereo/rowmap.hpp"
 
 #include <gst/video/gstvideofilter.h>
 
 #include <cmath>
+#include <memory>
 #include <mutex>
 
 GST_DEBUG_CATEGORY_STATIC(treeoverlay_debug);
@@ -82,6 +84,7 @@ enum {
   PROP_DRAW_TEXT,
   PROP_DEPTH_NEAR,
   PROP_DEPTH_FAR,
+  PROP_DRAW_MAP,
 };
 
 static GType gst_tree_overlay_views_get_type(void)
@@ -116,6 +119,7 @@ namespace {
 struct Settings {
   GstTreeOverlayViews views = DEFAULT_VIEWS;
   OverlayStyle style;
+  bool draw_map = false;
 };
 
 struct State {
@@ -126,6 +130,10 @@ struct State {
   int in_views = 1;
   bool crop = false; // views=left on a side-by-side input: copy the left half
   ChannelOrder order;
+  // draw-map: the row map built from the frames seen (as treemetrics' and spraycontrol's), the
+  // last ground plane found
+  std::unique_ptr<RowMap> map;
+  GroundPlane ground;
 };
 
 } // namespace
@@ -247,6 +255,8 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
   }
   st->order = layout.order();
   st->in_views = treestereo::gst::n_views_of(in_info);
+  st->map.reset(); // a new stream (or new views): its own map
+  st->ground = GroundPlane();
   const int in_w = GST_VIDEO_INFO_WIDTH(in_info), out_w = GST_VIDEO_INFO_WIDTH(out_info);
   st->crop = st->in_views == 2 && out_w == in_w / 2;
   if ((!st->crop && out_w != in_w) || GST_VIDEO_INFO_HEIGHT(in_info) != GST_VIDEO_INFO_HEIGHT(out_info)) {
@@ -313,12 +323,55 @@ static OverlayScene scene_from_metas(GstBuffer *buf, int n_views)
   return scene;
 }
 
+/* The row map as a strip across the bottom of the left view: the travel from 2.5 m behind the
+ * camera to 1 m ahead of it, the bands from the ground up, the camera's place a white line. It
+ * scrolls with the travel; a cell is drawn as soon as a frame has seen it. */
+static void draw_map_strip(State *st, GstBuffer *metas, cv::Mat &image, int n_views)
+{
+  const GstTreeStereoMetricsMeta *mt = gst_buffer_get_tree_stereo_metrics_meta(metas);
+  const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(metas);
+  const GstTreeStereoCanopyMeta *canopy = gst_buffer_get_tree_stereo_canopy_meta(metas);
+  if (!mt || !gm)
+    return; // no position: nothing to scroll with
+  const double position_m = mt->metrics.position_m;
+  if (canopy && canopy->ground_found)
+    st->ground = treestereo::gst::ground_from_meta(canopy);
+  if (!st->map)
+    st->map = std::make_unique<RowMap>();
+  const StereoGeometry geometry = treestereo::gst::geometry_from_meta(gm);
+  if (canopy && st->ground.found && geometry.valid())
+    treestereo::gst::feed_row_map(*st->map, metas, geometry, canopy,
+                                  gst_buffer_get_tree_stereo_points_meta(metas), st->ground,
+                                  position_m * 1000.0);
+  const int view_w = image.cols / std::max(1, n_views);
+  const int h = std::max(24, image.rows / 6);
+  if (view_w < 16 || image.rows < 2 * h)
+    return;
+  cv::Mat strip(h, view_w, CV_8UC3);
+  st->map->draw_strip(strip, position_m - 2.5, position_m + 1.0, position_m);
+  const ChannelOrder &o = st->order;
+  for (int y = 0; y < h; y++) {
+    const cv::Vec3b *src = strip.ptr<cv::Vec3b>(y);
+    uchar *dst = image.ptr<uchar>(image.rows - h + y);
+    for (int x = 0; x < view_w; x++) {
+      uchar *p = dst + x * o.channels;
+      if (o.channels == 4)
+        p[6 - o.r - o.g - o.b] = 255; // the padding or alpha channel
+      p[o.b] = src[x][0];
+      p[o.g] = src[x][1];
+      p[o.r] = src[x][2];
+    }
+  }
+}
+
 static GstFlowReturn draw(GstTreeOverlay *self, GstBuffer *metas, cv::Mat image, int n_views)
 {
   const Settings s = snapshot(self);
   const ChannelOrder order = self->state->order;
   return treestereo::gst::guarded(GST_ELEMENT(self), GST_FLOW_ERROR, [&] {
     draw_overlay(image, order, scene_from_metas(metas, n_views), s.style);
+    if (s.draw_map)
+      draw_map_strip(self->state, metas, image, n_views);
     return GST_FLOW_OK;
   });
 }
@@ -393,6 +446,9 @@ static void gst_tree_overlay_set_property(GObject *object, guint prop_id, const 
   case PROP_DEPTH_FAR:
     s.style.depth_far_m = g_value_get_double(value);
     break;
+  case PROP_DRAW_MAP:
+    s.draw_map = g_value_get_boolean(value);
+    break;
   default:
     G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
     break;
@@ -434,6 +490,9 @@ static void gst_tree_overlay_get_property(GObject *object, guint prop_id, GValue
     break;
   case PROP_DEPTH_FAR:
     g_value_set_double(value, s.style.depth_far_m);
+    break;
+  case PROP_DRAW_MAP:
+    g_value_set_boolean(value, s.draw_map);
     break;
   default:
     G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
@@ -496,6 +555,15 @@ static void gst_tree_overlay_class_init(GstTreeOverlayClass *klass)
                 "Draw the band profile of treemetrics (needs the geometry meta)");
   install_layer(gobject_class, PROP_DRAW_TEXT, "draw-text", "Draw text",
                 "Draw the panel with distance, height, width, thickness and the depth legend");
+  g_object_class_install_property(
+      gobject_class, PROP_DRAW_MAP,
+      g_param_spec_boolean("draw-map", "Draw map",
+                           "Draw the row canopy map as a strip across the bottom of the left "
+                           "view, scrolling with the travel (needs treemetrics' position and "
+                           "stereodepth's canopy meta)",
+                           FALSE,
+                           GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
+                                       GST_PARAM_MUTABLE_PLAYING)));
   g_object_class_install_property(
       gobject_class, PROP_DEPTH_NEAR,
       g_param_spec_double("depth-near", "Depth near",

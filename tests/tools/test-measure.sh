@@ -99,6 +99,7 @@ canopy_mode_is "$tmp/h.jsonl" row || fail "--canopy row"
 synth="$(dirname "$measure")/treestereo-synth"
 "$measure" --synthetic --speed 2 --frames 24 --size 640x480 --json "$tmp/d.jsonl" \
   --trees "$tmp/d-trees.jsonl" --row-map "$tmp/d-map.csv" --sections "$tmp/d-sections.jsonl" \
+  --record "$tmp/d.mp4" \
   >"$tmp/d.out" 2>&1 || { cat "$tmp/d.out"; fail "drive-by run"; }
 "$synth" --scene orchard --speed 2 --frames 24 --size 640x480 --format jpg -o "$tmp/d-truth" \
   >/dev/null 2>&1 || fail "treestereo-synth for the drive-by's truth"
@@ -156,6 +157,28 @@ for t in row.values():
         assert abs(near["position_m"] - edge) <= tol, f"section 1 {'on' if on else 'off'} at {near['position_m']} m, tree edge {edge:.3f} m"
 PY
 [ -s "$tmp/d-map.png" ] || fail "the row map's PNG was not written beside the CSV"
+[ -s "$tmp/d-sections.png" ] || fail "the valve timeline's PNG was not written beside --sections"
+# the recording's map strip (treeoverlay draw-map): across the bottom sixth of the left view of
+# the last frame, the row map's cells coloured by distance and the camera's white line
+timeout 60 gst-launch-1.0 -q filesrc location="$tmp/d.mp4" ! qtdemux ! decodebin ! videoconvert ! \
+  video/x-raw,format=RGB,width=1280,height=480 ! multifilesink location="$tmp/d-frame-%03d.rgb" ||
+  fail "could not decode the drive-by's recording"
+python3 - "$(ls "$tmp"/d-frame-*.rgb | tail -1)" <<'PY' || fail "no row map strip in the recording"
+import sys
+w, h = 1280, 480
+data = open(sys.argv[1], "rb").read()
+assert len(data) == w * h * 3, len(data)
+strip = range(h - h // 6 + 4, h - 4)
+def px(x, y):
+    i = 3 * (y * w + x)
+    return data[i], data[i + 1], data[i + 2]
+# distance colours (turbo: strongly saturated), and a nearly white column (the camera)
+coloured = sum(1 for y in strip for x in range(0, 640, 2) if max(px(x, y)) - min(px(x, y)) > 120)
+white_cols = [x for x in range(640) if sum(sum(px(x, y)) > 3 * 190 for y in strip) > 0.8 * len(strip)]
+total = len(strip) * 320
+print(f"map strip: {100 * coloured / total:.0f} % coloured, camera line at x {white_cols[:3]}")
+assert coloured > 0.1 * total and white_cols
+PY
 
 # 2. image sequences (the committed fixtures) with their calibration
 fx="$src/tests/fixtures/seq-static"
