@@ -14,6 +14,8 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <tuple>
+#include <utility>
 
 namespace treestereo {
 
@@ -275,6 +277,49 @@ void RowMap::write_csv(const std::string &path) const
     throw std::runtime_error("row map: writing " + path + " failed: " + std::strerror(errno));
 }
 
+namespace
+{
+
+// The distances (m) of the present cells of bins [first, last): (+inf, -inf) when none.
+template <class It> std::pair<double, double> present_distances(It first, It last)
+{
+  std::pair<double, double> r(std::numeric_limits<double>::infinity(),
+                              -std::numeric_limits<double>::infinity());
+  for (; first != last; ++first)
+    for (const RowMapCell &c : first->second.cells)
+      if (c.present) {
+        r.first = std::min(r.first, c.distance_m);
+        r.second = std::max(r.second, c.distance_m);
+      }
+  return r;
+}
+
+// The distance colours of the map's pictures: cv::COLORMAP_TURBO (BGR) over [near_m, far_m],
+// widened to 5 cm around its middle for a flat row.
+struct DistanceColours {
+  double near_m, far_m;
+  cv::Mat lut;
+  DistanceColours(double dmin, double dmax) : near_m(dmin), far_m(dmax)
+  {
+    if (far_m - near_m < 0.05) {
+      const double mid = 0.5 * (near_m + far_m);
+      near_m = std::max(0.0, mid - 0.025);
+      far_m = near_m + 0.05;
+    }
+    cv::Mat ramp(1, 256, CV_8U);
+    for (int i = 0; i < 256; ++i)
+      ramp.at<uchar>(0, i) = uchar(i);
+    cv::applyColorMap(ramp, lut, cv::COLORMAP_TURBO);
+  }
+  cv::Vec3b operator()(double d) const
+  {
+    const int i = std::clamp(int(std::lround((d - near_m) / (far_m - near_m) * 255.0)), 0, 255);
+    return lut.at<cv::Vec3b>(0, i);
+  }
+};
+
+} // namespace
+
 cv::Size RowMap::render_size(const RowMapRenderParams &r) const
 {
   const long bins = bins_.empty() ? 0 : last_bin() - first_bin() + 1;
@@ -313,31 +358,17 @@ cv::Mat RowMap::render(const std::vector<TreeRecord> &trees, const RowMapRenderP
   // The distance scale.
   double dmin = r.distance_min_m, dmax = r.distance_max_m;
   if (dmin == 0 && dmax == 0) {
-    dmin = std::numeric_limits<double>::infinity();
-    dmax = -dmin;
-    for (const auto &bn : bins_)
-      for (const RowMapCell &c : bn.second.cells)
-        if (c.present) {
-          dmin = std::min(dmin, c.distance_m);
-          dmax = std::max(dmax, c.distance_m);
-        }
+    std::tie(dmin, dmax) = present_distances(bins_.begin(), bins_.end());
     if (!std::isfinite(dmin)) {
       dmin = 0;
       dmax = 1;
     }
   }
-  if (dmax - dmin < 0.05) { // a flat row: a scale of at least 5 cm around it
-    const double mid = 0.5 * (dmin + dmax);
-    dmin = std::max(0.0, mid - 0.025);
-    dmax = dmin + 0.05;
-  }
-  cv::Mat ramp(1, 256, CV_8U), lut;
-  for (int i = 0; i < 256; ++i)
-    ramp.at<uchar>(0, i) = uchar(i);
-  cv::applyColorMap(ramp, lut, cv::COLORMAP_TURBO);
+  const DistanceColours scale(dmin, dmax);
+  dmin = scale.near_m;
+  dmax = scale.far_m;
   auto colour = [&](double d) {
-    const int i = std::clamp(int(std::lround((d - dmin) / (dmax - dmin) * 255.0)), 0, 255);
-    const cv::Vec3b c = lut.at<cv::Vec3b>(0, i);
+    const cv::Vec3b c = scale(d);
     return cv::Scalar(c[0], c[1], c[2]);
   };
 
@@ -477,27 +508,13 @@ void RowMap::draw_strip(cv::Mat &strip, double from_m, double to_m, double now_m
   const int nb = n_bands();
   const double m_per_px = (to_m - from_m) / strip.cols;
   if (dmin == 0 && dmax == 0) {
-    dmin = std::numeric_limits<double>::infinity();
-    dmax = -dmin;
-    for (auto it = bins_.lower_bound(long(std::floor(from_m * 1000.0 / params_.bin_mm)));
-         it != bins_.end() && double(it->first) * params_.bin_mm * kMmToM <= to_m; ++it)
-      for (const RowMapCell &c : it->second.cells)
-        if (c.present) {
-          dmin = std::min(dmin, c.distance_m);
-          dmax = std::max(dmax, c.distance_m);
-        }
+    std::tie(dmin, dmax) = present_distances(
+        bins_.lower_bound(long(std::floor(from_m * 1000.0 / params_.bin_mm))),
+        bins_.upper_bound(long(std::floor(to_m * 1000.0 / params_.bin_mm))));
     if (!std::isfinite(dmin))
       dmin = dmax = 0;
   }
-  if (dmax - dmin < 0.05) {
-    const double mid = 0.5 * (dmin + dmax);
-    dmin = std::max(0.0, mid - 0.025);
-    dmax = dmin + 0.05;
-  }
-  cv::Mat ramp(1, 256, CV_8U), lut;
-  for (int i = 0; i < 256; ++i)
-    ramp.at<uchar>(0, i) = uchar(i);
-  cv::applyColorMap(ramp, lut, cv::COLORMAP_TURBO);
+  const DistanceColours colour(dmin, dmax);
   strip.setTo(cv::Scalar(0, 0, 0));
   for (int x = 0; x < strip.cols; ++x) {
     const double w_m = from_m + (x + 0.5) * m_per_px;
@@ -508,15 +525,10 @@ void RowMap::draw_strip(cv::Mat &strip, double from_m, double to_m, double now_m
       const RowMapCell &c = it->second.cells[std::size_t(k)];
       if (!c.seen)
         continue;
-      cv::Vec3b colour(60, 60, 60);
-      if (c.present) {
-        const int i = std::clamp(int(std::lround((c.distance_m - dmin) / (dmax - dmin) * 255.0)),
-                                 0, 255);
-        colour = lut.at<cv::Vec3b>(0, i);
-      }
+      const cv::Vec3b fill = c.present ? colour(c.distance_m) : cv::Vec3b(60, 60, 60);
       const int y0 = strip.rows * (nb - 1 - k) / nb, y1 = strip.rows * (nb - k) / nb;
       for (int y = y0; y < y1; ++y)
-        strip.at<cv::Vec3b>(y, x) = colour;
+        strip.at<cv::Vec3b>(y, x) = fill;
     }
   }
   const int xn = int(std::lround((now_m - from_m) / m_per_px));
