@@ -615,17 +615,14 @@ struct DrivebyRun {
 struct SprayTruth {
   static constexpr double kBinMm = 10;
   double lo_mm = 0;
-  std::vector<std::vector<bool>> present; // [band][bin]
   std::vector<double> band_edges_mm;
+  std::vector<std::vector<bool>> present; // [band][bin]
 
   SprayTruth(double lo_mm_, double hi_mm, const RowMapParams &map)
-      : lo_mm(lo_mm_)
+      : lo_mm(lo_mm_), band_edges_mm(RowMap(map).band_edges_mm())
   {
-    const int nb = map.n_bands;
-    for (int b = 0; b <= nb; ++b)
-      band_edges_mm.push_back(map.min_height_mm +
-                              (map.max_height_mm - map.min_height_mm) * b / nb);
-    present.assign(std::size_t(nb), std::vector<bool>(std::size_t((hi_mm - lo_mm) / kBinMm) + 1));
+    present.assign(band_edges_mm.size() - 1,
+                   std::vector<bool>(std::size_t((hi_mm - lo_mm) / kBinMm) + 1));
   }
   void add(const GroundTruth &t, double travel_mm, double camera_height_mm)
   {

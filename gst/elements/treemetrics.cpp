@@ -202,11 +202,9 @@ struct Settings {
 struct Along {
   // The stereo travel: grey copies of the key frame's and the previous frame's rectified views.
   std::unique_ptr<Odometer> odometer;
-  bool has_views = false; // the odometer holds a previous frame
   void reset_views()
   {
     odometer.reset(); // made again for the next frame's view size
-    has_views = false;
   }
   bool has_prev_pts = false;
   GstClockTime prev_pts = GST_CLOCK_TIME_NONE;
@@ -433,10 +431,9 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
   if (pm)
     points = treestereo::gst::pixel_points_of(pm, gst_buffer_get_tree_stereo_matches_meta(buf),
                                               guint(geometry.view_size.width));
-  const bool had_views = a.has_views;
+  const bool had_views = a.odometer->has_previous();
   const auto t0 = std::chrono::steady_clock::now();
   const OdometryStep step = a.odometer->add(left, right, points, geometry, a.ground);
-  a.has_views = true;
   if (had_views) {
     const Motion &m = step.motion;
     const double ms =

@@ -520,8 +520,11 @@ TEST(Odometer, NoSpanMeansThePreviousFrameAndALostFrameStartsAKey)
   // Another view size: a first frame again.
   const Frame &full = frame_of(kFull, speed, 5, &g);
   EXPECT_FALSE(keyed.add(full.view[LEFT], full.view[RIGHT], full.vegetation, *g).found);
+  EXPECT_TRUE(keyed.has_previous());
   keyed.reset();
+  EXPECT_FALSE(keyed.has_previous());
   EXPECT_FALSE(keyed.add(f5.view[LEFT], f5.view[RIGHT], f5.vegetation, *g).found);
+  EXPECT_TRUE(keyed.has_previous());
 }
 
 // A standing rig stays on its first key frame: nothing adds up.

@@ -192,6 +192,8 @@ public:
 
   // Forgets every frame kept: the next frame is a first one.
   void reset();
+  // A frame was added since the last reset (the next one can be measured).
+  bool has_previous() const { return !prev_[0].empty(); }
 
   const OdometerParams &params() const { return params_; }
 
