@@ -806,6 +806,11 @@ void driveby_sweep(const Options &o)
             std::fprintf(stderr, "driveby seed=%llu speed=%.1f frame %d: segments%s\n",
                          (unsigned long long)run.c.seed, speed, frame, segs.c_str());
           }
+          if (m->metrics.tree_present)
+            std::fprintf(stderr, "driveby seed=%llu speed=%.1f frame %d: tree in front height "
+                         "%.3f width %.3f clipped %u\n",
+                         (unsigned long long)run.c.seed, speed, frame, m->metrics.height_m,
+                         m->metrics.width_m, m->metrics.clipped);
           std::fprintf(stderr, "driveby seed=%llu speed=%.1f frame %d: travel %.4f m (%s, truth "
                        "%.4f), position %.3f m (truth %.3f)\n",
                        (unsigned long long)run.c.seed, speed, frame, m->metrics.travel_m,

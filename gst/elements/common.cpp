@@ -302,6 +302,8 @@ GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, 
     o.selected = g.selected;
     o.joined_lo = g.joined_lo;
     o.joined_hi = g.joined_hi;
+    o.lo_z_m = g.lo_z_mm * kMmToM;
+    o.hi_z_m = g.hi_z_mm * kMmToM;
   }
   return meta;
 }
@@ -321,6 +323,8 @@ std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta)
     o.selected = g.selected != FALSE;
     o.joined_lo = g.joined_lo != FALSE;
     o.joined_hi = g.joined_hi != FALSE;
+    o.lo_z_mm = g.lo_z_m * 1e3;
+    o.hi_z_mm = g.hi_z_m * 1e3;
     out.push_back(o);
   }
   return out;

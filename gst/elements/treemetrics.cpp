@@ -493,7 +493,7 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
     }
     TrackFrame f;
     f.position_mm = a.position_mm;
-    view_slopes(geometry, f.left_slope, f.right_slope);
+    view_slopes(geometry, f.left_slope, f.right_slope, f.left_offset_mm);
     f.segments = treestereo::gst::segments_from_meta(canopy);
     // The metrics describe the selected canopy: one segment (the tree in front; in mode row
     // only when the canopy is one segment, else they span several canopies).
@@ -537,7 +537,7 @@ static bool write_row_map(GstTreeMetrics *self, const std::string &location)
     } else {
       // No frame with a canopy and a ground plane: the header alone, no picture.
       std::ofstream f(location);
-      f << "position_m,band,present,distance_m,fill\n";
+      f << RowMap::kCsvHeader << '\n';
       f.flush();
       if (!f)
         throw std::runtime_error("cannot write " + location + ": " + g_strerror(errno));

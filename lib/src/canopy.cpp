@@ -601,8 +601,14 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       const bool in = runs.empty() || p.mode == CanopyMode::Row || k == front;
       r.classes[std::size_t(i)] = in ? PointClass::Canopy : PointClass::Neighbour;
       RowSegment &s = r.segments[std::size_t(k)];
-      s.lo_mm = std::min(s.lo_mm, P(i).x);
-      s.hi_mm = std::max(s.hi_mm, P(i).x);
+      if (P(i).x < s.lo_mm) {
+        s.lo_mm = P(i).x;
+        s.lo_z_mm = P(i).z;
+      }
+      if (P(i).x > s.hi_mm) {
+        s.hi_mm = P(i).x;
+        s.hi_z_mm = P(i).z;
+      }
       ++s.n_points;
       s.selected = in;
       seg_z[std::size_t(k)].push_back(P(i).z);

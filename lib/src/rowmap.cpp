@@ -263,14 +263,14 @@ void RowMap::write_csv(const std::string &path) const
   std::ofstream f(path);
   if (!f)
     throw std::runtime_error("row map: cannot write " + path + ": " + std::strerror(errno));
-  f << "position_m,band,present,distance_m,fill\n";
+  f << kCsvHeader << '\n';
   const int nb = n_bands();
   for (long b = first_bin(); b <= last_bin(); ++b)
     for (int k = 0; k < nb; ++k) {
       const RowMapCell c = cell(b, k);
       f << fixed((double(b) + 0.5) * params_.bin_mm * kMmToM, 4) << ',' << k << ','
         << (c.present ? 1 : 0) << ',' << (c.present ? fixed(c.distance_m, 4) : std::string())
-        << ',' << fixed(c.fill, 4) << '\n';
+        << ',' << fixed(c.fill, 4) << ',' << (c.seen ? 1 : 0) << '\n';
     }
   f.flush();
   if (!f)

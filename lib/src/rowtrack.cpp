@@ -28,18 +28,20 @@ void check_frame(const TrackFrame &f)
   if (!std::isfinite(f.position_mm))
     throw std::runtime_error("tree tracker: position_mm must be finite");
   if (!std::isfinite(f.left_slope) || !std::isfinite(f.right_slope) ||
-      !(f.left_slope < f.right_slope))
+      !(f.left_slope < f.right_slope) || !std::isfinite(f.left_offset_mm))
     throw std::runtime_error("tree tracker: the view's edge slopes must be finite with "
-                             "left_slope < right_slope (see view_slopes())");
+                             "left_slope < right_slope, and left_offset_mm finite (see "
+                             "view_slopes())");
   if (f.measured_segment < -1 || f.measured_segment >= int(f.segments.size()))
     throw std::runtime_error("tree tracker: measured_segment " +
                              std::to_string(f.measured_segment) + " is not an index into the " +
                              std::to_string(f.segments.size()) + " segments");
   for (const RowSegment &s : f.segments)
     if (!std::isfinite(s.lo_mm) || !std::isfinite(s.hi_mm) || s.hi_mm < s.lo_mm ||
-        !std::isfinite(s.near_mm) || !(s.near_mm > 0))
-      throw std::runtime_error("tree tracker: a segment needs finite lo_mm <= hi_mm and a "
-                               "near_mm above 0");
+        !std::isfinite(s.near_mm) || !(s.near_mm > 0) || !(s.lo_z_mm >= 0) ||
+        !(s.hi_z_mm >= 0) || !std::isfinite(s.lo_z_mm) || !std::isfinite(s.hi_z_mm))
+      throw std::runtime_error("tree tracker: a segment needs finite lo_mm <= hi_mm, a near_mm "
+                               "above 0 and lo_z_mm, hi_z_mm finite and 0 or above");
 }
 
 // A track keeps at most this many samples of each figure (the latest): a tree in view for longer
@@ -116,12 +118,20 @@ void validate(const TrackerParams &p)
   require(p.forward == 1 || p.forward == -1, "forward", "+1 or -1");
 }
 
-void view_slopes(const StereoGeometry &g, double &left_slope, double &right_slope)
+void view_slopes(const StereoGeometry &g, double &left_slope, double &right_slope,
+                 double &left_offset_mm)
 {
   if (!g.valid())
     throw std::runtime_error("view_slopes: the stereo geometry is not valid");
-  left_slope = (-0.5 - g.cx[LEFT]) / g.fx;
   right_slope = (g.view_size.width - 0.5 - g.cx[LEFT]) / g.fx;
+  const double own = (-0.5 - g.cx[LEFT]) / g.fx, other = (-0.5 - g.cx[RIGHT]) / g.fx;
+  if (other * 1000.0 + g.baseline_mm >= own * 1000.0) {
+    left_slope = other;
+    left_offset_mm = g.baseline_mm;
+  } else {
+    left_slope = own;
+    left_offset_mm = 0;
+  }
 }
 
 std::string to_json(const TreeRecord &r)
@@ -216,9 +226,11 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
   std::vector<Seg> segs(ns);
   for (std::size_t i = 0; i < ns; ++i) {
     const RowSegment &s = f.segments[i];
+    const double z_lo = s.lo_z_mm > 0 ? s.lo_z_mm : s.near_mm;
+    const double z_hi = s.hi_z_mm > 0 ? s.hi_z_mm : s.near_mm;
     segs[i] = {s.lo_mm + pos, s.hi_mm + pos,
-               s.lo_mm <= f.left_slope * s.near_mm + params_.edge_margin_mm,
-               s.hi_mm >= f.right_slope * s.near_mm - params_.edge_margin_mm};
+               s.lo_mm <= f.left_slope * z_lo + f.left_offset_mm + params_.edge_margin_mm,
+               s.hi_mm >= f.right_slope * z_hi - params_.edge_margin_mm};
   }
   // Each track's extent to match against. Mode Tree: an end seen off the image edge in two
   // frames or more is its median, not the last frame's: a frame whose segment reached across a
@@ -430,7 +442,8 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
   std::vector<Track> done, keep;
   for (Track &k : tracks_) {
     const auto [lo, hi] = robust_ends(k, k.min_lo_mm, k.max_hi_mm);
-    const bool behind = k.missed > 0 && (direction_ > 0 ? hi < pos + f.left_slope * k.near_mm
+    const bool behind = k.missed > 0 && (direction_ > 0 ? hi < pos + f.left_slope * k.near_mm +
+                                                                   f.left_offset_mm
                                                         : lo > pos + f.right_slope * k.near_mm);
     if (behind) {
       done.push_back(std::move(k));

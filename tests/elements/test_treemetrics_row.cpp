@@ -471,7 +471,7 @@ GST_START_TEST(test_trees_and_row_map_on_the_orchard)
   fail_unless(f.good(), "no row map at %s", csv.c_str());
   std::string line;
   std::getline(f, line);
-  fail_unless_equals_string(line.c_str(), "position_m,band,present,distance_m,fill");
+  fail_unless_equals_string(line.c_str(), "position_m,band,present,distance_m,fill,seen");
   int rows = 0, present = 0;
   double first = 1e9, last = -1e9;
   while (std::getline(f, line)) {

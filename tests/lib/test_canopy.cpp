@@ -396,6 +396,12 @@ TEST(Canopy, TouchingCrownsAreCutWhereTheirTopLineDips)
   EXPECT_FALSE(two.segments[0].joined_lo);
   EXPECT_NEAR(two.segments[0].hi_mm, 110, 40);
   EXPECT_NEAR(two.segments[1].lo_mm, 110, 40);
+  // The outer ends' depths are their limbs', near the spheres' centres (2.2 m), well behind
+  // the crowns' fronts (1.92 and 1.85 m).
+  EXPECT_GT(two.segments[0].lo_z_mm, two.segments[0].near_mm + 100);
+  EXPECT_LT(two.segments[0].lo_z_mm, 2250);
+  EXPECT_GT(two.segments[1].hi_z_mm, two.segments[1].near_mm + 100);
+  EXPECT_LT(two.segments[1].hi_z_mm, 2250);
 
   // One crown of two lobes: its top line dips by about a tenth of its height.
   Scene lobes;

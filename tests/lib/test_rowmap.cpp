@@ -205,11 +205,19 @@ TEST(RowMap, CsvHeaderAndRows)
   std::ifstream f(path);
   std::string line;
   ASSERT_TRUE(std::getline(f, line));
-  EXPECT_EQ(line, "position_m,band,present,distance_m,fill");
-  std::size_t rows = 0;
+  EXPECT_EQ(line, "position_m,band,present,distance_m,fill,seen");
+  std::size_t rows = 0, unseen = 0;
   bool found = false, found_gap = false;
   while (std::getline(f, line)) {
     ++rows;
+    // The last column: whether a frame saw the cell, as the map has it.
+    const double at = std::stod(line.substr(0, line.find(',')));
+    const int k = std::stoi(line.substr(line.find(',') + 1));
+    const long bin = std::lround(at / 0.05 - 0.5);
+    const bool seen = line.back() == '1';
+    EXPECT_TRUE(line.back() == '1' || line.back() == '0') << line;
+    EXPECT_EQ(seen, map.cell(bin, k).seen) << line;
+    unseen += !seen;
     double pos = 0, dist = 0, fill = 0;
     int band = 0, present = 0;
     if (std::sscanf(line.c_str(), "%lf,%d,%d,%lf,%lf", &pos, &band, &present, &dist, &fill) ==
@@ -220,14 +228,39 @@ TEST(RowMap, CsvHeaderAndRows)
       EXPECT_NEAR(dist, 2.0, 0.001);
       EXPECT_NEAR(fill, 1.0, 0.03);
     }
-    if (line.rfind("1.6250,2,0,,", 0) == 0)
+    if (line.rfind("1.6250,2,0,,", 0) == 0) {
       found_gap = true;
+      EXPECT_TRUE(seen) << "a gap seen empty: " << line;
+    }
   }
   EXPECT_TRUE(found);
   EXPECT_TRUE(found_gap);
+  EXPECT_EQ(unseen, 0u); // every band in view of some frame
   EXPECT_EQ(rows, std::size_t(map.last_bin() - map.first_bin() + 1) * 4);
   EXPECT_GT(map.last_bin() - map.first_bin(), 90); // -1.2 to 5.2 m at least
   std::remove(path.c_str());
+
+  // Bands up to 6 m: the top ones above the view. Unseen, not empty: seen 0.
+  RowMapParams high;
+  high.max_height_mm = 6000;
+  RowMap tall(high);
+  const StereoGeometry g = camera();
+  const View v = cast(g, kWalls, 1000);
+  tall.add_frame(v.mask, v.points, g, level_ground(), 1000);
+  ASSERT_FALSE(tall.cell(tall.first_bin(), 3).seen);
+  tall.write_csv(path);
+  std::ifstream t(path);
+  std::getline(t, line);
+  std::size_t top_rows = 0, top_unseen = 0;
+  while (std::getline(t, line))
+    if (line.find(",3,") != std::string::npos) {
+      ++top_rows;
+      top_unseen += line.size() > 2 && line.compare(line.size() - 2, 2, ",0") == 0;
+      EXPECT_NE(line.find(",3,0,,"), std::string::npos) << line;
+    }
+  EXPECT_GT(top_rows, 0u);
+  EXPECT_EQ(top_unseen, top_rows);
+
 }
 
 TEST(RowMap, PngWrittenWithItsSize)

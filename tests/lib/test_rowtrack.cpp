@@ -567,6 +567,90 @@ TEST(TreeTracker, AStandingRigIsMeasuredByItsLatestFrames)
   EXPECT_EQ(rec[0].frames_seen, 200);
 }
 
+// The record of one tree the rig stands in front of for 5 frames, its left end `lo_mm` at depth
+// `lo_z_mm` (0: unknown), the stereo view's left edge `left_offset_mm` inside the image's.
+TreeRecord stand_before(double lo_mm, double lo_z_mm, double left_offset_mm)
+{
+  TreeTracker tracker;
+  for (int f = 0; f < 5; ++f) {
+    TrackFrame tf;
+    tf.left_slope = kLeftSlope;
+    tf.right_slope = kRightSlope;
+    tf.left_offset_mm = left_offset_mm;
+    RowSegment seg;
+    seg.lo_mm = lo_mm;
+    seg.hi_mm = lo_mm + 700;
+    seg.near_mm = kNear;
+    seg.lo_z_mm = lo_z_mm;
+    seg.hi_z_mm = kNear;
+    seg.n_points = 500;
+    seg.selected = true;
+    tf.segments = {seg};
+    tf.metrics.tree_present = true;
+    tf.metrics.height_m = 0.9;
+    tf.metrics.width_m = 0.7;
+    tf.metrics.distance_m = 2.0;
+    tf.measured_segment = 0;
+    EXPECT_TRUE(tracker.update(tf).empty()) << f;
+  }
+  const auto rec = tracker.finish();
+  EXPECT_EQ(rec.size(), 1u);
+  return rec.empty() ? TreeRecord() : rec[0];
+}
+
+TEST(TreeTracker, AnEndIsOnTheViewEdgeAtItsOwnDepth)
+{
+  // A limb 0.4 m behind the front ends 20 mm inside the edge ray at the front's depth, 256 mm
+  // inside it at its own: the tree is whole in view, and measured.
+  const double lo = kLeftSlope * kNear + 20;
+  const TreeRecord deep = stand_before(lo, kNear + 400, 0);
+  EXPECT_TRUE(deep.start_seen);
+  EXPECT_TRUE(deep.complete);
+  ASSERT_TRUE(deep.has_width);
+  EXPECT_NEAR(deep.width_m, 0.7, 1e-9);
+  EXPECT_EQ(deep.width_frames, 5);
+  // Its depth unknown, the front's decides: on the edge, a lower bound, no width.
+  const TreeRecord unknown = stand_before(lo, 0, 0);
+  EXPECT_FALSE(unknown.start_seen);
+  EXPECT_FALSE(unknown.has_width);
+  EXPECT_FALSE(unknown.complete);
+  // An end 100 mm inside the left image's edge, at the front: in view of the left camera, but
+  // within the strip the right camera does not see (a baseline of 120 mm): the stereo points
+  // stop at that strip's edge, whatever the canopy does beyond it.
+  const double in_strip = kLeftSlope * kNear + 100;
+  EXPECT_TRUE(stand_before(in_strip, kNear, 0).has_width);
+  const TreeRecord strip = stand_before(in_strip, kNear, 120);
+  EXPECT_FALSE(strip.start_seen);
+  EXPECT_FALSE(strip.has_width);
+}
+
+TEST(TreeTracker, ViewEdgesOfTheStereoPair)
+{
+  StereoGeometry g;
+  g.view_size = cv::Size(1296, 972);
+  g.fx = g.fy = 1100;
+  g.cx[0] = g.cx[1] = 648;
+  g.cy = 486;
+  g.baseline_mm = 120;
+  double l = 0, r = 0, off = 0;
+  view_slopes(g, l, r, off);
+  // The right camera's left edge ray, a baseline to the side; the left camera's right edge.
+  EXPECT_NEAR(l, (-0.5 - 648) / 1100, 1e-12);
+  EXPECT_NEAR(off, 120, 1e-12);
+  EXPECT_NEAR(r, (1296 - 0.5 - 648) / 1100, 1e-12);
+  // A point on the right view's left border at 2 m: u_r = -0.5, d = fx B / Z.
+  const double Z = 2000, d = g.fx * g.baseline_mm / Z, u = -0.5 + d;
+  EXPECT_NEAR(l * Z + off, (u - g.cx[0]) / g.fx * Z, 1e-9);
+  // Principal points far apart (the right one 300 px further right): the left image's own edge
+  // is the inner one.
+  g.cx[1] = 948;
+  view_slopes(g, l, r, off);
+  EXPECT_NEAR(l, (-0.5 - 648) / 1100, 1e-12);
+  EXPECT_EQ(off, 0);
+  g.baseline_mm = 0;
+  EXPECT_THROW(view_slopes(g, l, r, off), std::runtime_error);
+}
+
 TEST(TreeTracker, JsonLineHasTheDesignNames)
 {
   Sim sim;

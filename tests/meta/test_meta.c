@@ -490,6 +490,8 @@ fill_canopy (GstTreeStereoCanopyMeta * c, GstBuffer * mask)
     c->segments[i].near_m = 1.8 + 0.05 * i;
     c->segments[i].n_points = 100 + i;
     c->segments[i].selected = i == 1;
+    c->segments[i].lo_z_m = 2.1 + 0.05 * i;
+    c->segments[i].hi_z_m = 2.2 + 0.05 * i;
   }
 }
 
@@ -517,6 +519,8 @@ assert_canopy_figures_equal (const GstTreeStereoCanopyMeta * a, const GstTreeSte
     fail_unless_equals_float (a->segments[i].near_m, b->segments[i].near_m);
     fail_unless_equals_int (a->segments[i].n_points, b->segments[i].n_points);
     fail_unless_equals_int (a->segments[i].selected, b->segments[i].selected);
+    fail_unless_equals_float (a->segments[i].lo_z_m, b->segments[i].lo_z_m);
+    fail_unless_equals_float (a->segments[i].hi_z_m, b->segments[i].hi_z_m);
   }
 }
 

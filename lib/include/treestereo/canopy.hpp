@@ -107,6 +107,9 @@ struct GroundPlane {
 // min_gap_mm (mode Tree) or taken whole (mode Row: one per run all the same).
 struct RowSegment {
   double lo_mm = 0, hi_mm = 0; // X extent of its points (rectified-left frame)
+  // Z of the points at lo_mm and hi_mm: whether an end lies on the view's edge is a question of
+  // its own depth (a limb behind the front reaches further out on an edge ray). 0: unknown.
+  double lo_z_mm = 0, hi_z_mm = 0;
   double near_mm = 0;          // the 5th percentile of its points' Z
   std::size_t n_points = 0;
   bool selected = false;       // part of the canopy this result reports

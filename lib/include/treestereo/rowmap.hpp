@@ -1,6 +1,7 @@
 // The row map: the near row's canopy as a grid of travel bins (along the row) by height bands
 // (above the ground), what a sprayer's nozzle sections need (DESIGN.md "In an orchard": the row
-// map, CSV rows position_m, band, present, distance_m, fill).
+// map, CSV rows position_m, band, present, distance_m, fill; and seen, which tells a cell no frame
+// saw from one seen empty).
 //
 // Bands are fixed heights above the ground, not shares of each tree's height: a sprayer's
 // nozzle sections sit at fixed heights on the boom. Band 0 is the lowest. Defaults: 400 to
@@ -103,10 +104,12 @@ public:
   // The cell of bin b (index as above), band k (0 = lowest); an unseen default cell outside.
   RowMapCell cell(long bin, int band) const;
 
-  // One row per bin (first_bin() to last_bin()) and band: position_m (the bin's centre, m),
-  // band, present (0/1), distance_m (empty when not present), fill. Throws std::runtime_error
-  // naming the path when it cannot be written.
+  // One row per bin (first_bin() to last_bin()) and band, under kCsvHeader: position_m (the
+  // bin's centre, m), band, present (0/1), distance_m (empty when not present), fill, seen (0/1:
+  // no frame saw the cell, above or below the view; its present 0 says nothing of canopy).
+  // Throws std::runtime_error naming the path when it cannot be written.
   void write_csv(const std::string &path) const;
+  static constexpr const char *kCsvHeader = "position_m,band,present,distance_m,fill,seen";
 
   // The map as a picture (CV_8UC3, BGR): travel along x (world x rising to the right), height
   // above the ground along y (ground at the bottom), each cell coloured by its distance

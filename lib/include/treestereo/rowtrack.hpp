@@ -11,11 +11,13 @@
 // (view_slopes() from the rectified geometry), the near row's segments and, when a tree was
 // measured, its TreeMetrics and the index of the segment they describe.
 //
-//  - A segment end is cut by the image edge when it lies within edge_margin_mm of that edge's
-//    ray at the segment's front depth (near_mm). Points deeper than the front stand further
-//    out on an edge ray, so a segment that runs out of the view always tests cut; a segment
-//    whose deep limb ends just inside the edge may test cut too, which only costs that frame's
-//    end for start_m / end_m.
+//  - A segment end is cut by the view's edge when it lies within edge_margin_mm of that edge's
+//    ray at the end's own depth (RowSegment::lo_z_mm / hi_z_mm; the front depth near_mm where
+//    it is not known). The left edge is that of the stereo view: the points need both cameras,
+//    and the right camera's left edge ray lies a baseline inside the left one's
+//    (TrackFrame::left_offset_mm). A limb behind the front reaches further out on an edge ray
+//    than the front does, so the front depth would call a crown whose deep limb ends just
+//    inside the view cut, and lose that frame's measurement.
 //  - Association: each segment's world extent against each track's world extent, widened by
 //    match_tolerance_mm (travel error, sparse points at the limbs); pairs taken one to one,
 //    largest overlap first. A track's extent is the last frame's, except (mode Tree) an end seen
@@ -88,9 +90,11 @@ void validate(const TrackerParams &params);
 // What one frame tells the tracker.
 struct TrackFrame {
   double position_mm = 0;        // the rig's travel since the start, along the row (+x)
-  // Slopes x/z of the rays through the image's left and right edges (rectified left view):
-  // left < right; camera x of an edge at depth Z is slope * Z. See view_slopes().
+  // The edges of the stereo view (rectified left camera's frame): at depth Z the left edge is
+  // at camera x = left_slope * Z + left_offset_mm, the right one at right_slope * Z; left_slope
+  // < right_slope. See view_slopes().
   double left_slope = 0, right_slope = 0;
+  double left_offset_mm = 0;
   std::vector<RowSegment> segments; // the near row's segments, left to right (CanopyResult)
   // The tree in front's measurements (tree_present false: none) and the index into `segments`
   // of the segment they describe (-1: none).
@@ -98,9 +102,14 @@ struct TrackFrame {
   int measured_segment = -1;
 };
 
-// The edge rays' slopes of the left rectified view: (-0.5 - cx) / fx and (width - 0.5 - cx) / fx
-// (pixel centres at integers, so the image's outer pixel edges). Throws on an invalid geometry.
-void view_slopes(const StereoGeometry &geometry, double &left_slope, double &right_slope);
+// The edges of the view both rectified cameras see, in the left camera's frame: on the right
+// the left image's edge ray, slope (width - 0.5 - cx_left) / fx; on the left the right image's
+// edge ray, slope (-0.5 - cx_right) / fx, a baseline to the side (left_offset_mm), or the left
+// image's own edge ray (slope (-0.5 - cx_left) / fx, offset 0) when the principal points make
+// that one the inner one at 1 m. Pixel centres at integers: the images' outer pixel edges.
+// Throws on an invalid geometry.
+void view_slopes(const StereoGeometry &geometry, double &left_slope, double &right_slope,
+                 double &left_offset_mm);
 
 // One band of a record: TreeMetrics' Band fused over the frames fully in view (median per value;
 // present when it was present in at least half of them). left_m / right_m are world positions

@@ -328,6 +328,8 @@ GType gst_tree_stereo_canopy_mode_get_type (void);
  * @joined_lo: TRUE when it is cut from the segment before it where their crowns touch (no
  *   empty stretch between them: two trees grown into each other, mode tree)
  * @joined_hi: likewise with the segment after it
+ * @lo_z_m: Z of its leftmost point (m; 0: unknown)
+ * @hi_z_m: Z of its rightmost point (m; 0: unknown)
  *
  * One stretch of the near row along x, separated from the next by an empty stretch (mode tree),
  * or one continuous canopy (mode row).
@@ -340,6 +342,8 @@ typedef struct {
   gboolean selected;
   gboolean joined_lo;
   gboolean joined_hi;
+  gdouble lo_z_m;
+  gdouble hi_z_m;
 } GstTreeStereoRowSegment;
 
 /* Segments a canopy meta holds at most (the view of a rig between two rows holds a few). */
