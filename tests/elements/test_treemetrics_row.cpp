@@ -7,6 +7,7 @@
 #include "treestereo/scene.hpp"
 
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -283,9 +284,31 @@ void handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
                       mm->metrics.travel_source});
 }
 
+/* Blanks the pixels of buffer number `target` (from 0) on their way into treemetrics: its metas
+ * stay, its views show nothing to track. */
+struct Blank {
+  int target = -1, seen = 0;
+};
+
+GstPadProbeReturn blank_frame(GstPad *, GstPadProbeInfo *info, gpointer data)
+{
+  Blank &b = *static_cast<Blank *>(data);
+  if (GST_PAD_PROBE_INFO_TYPE(info) & GST_PAD_PROBE_TYPE_BUFFER) {
+    if (b.seen++ == b.target) {
+      GstBuffer *buf = gst_buffer_make_writable(GST_PAD_PROBE_INFO_BUFFER(info));
+      GST_PAD_PROBE_INFO_DATA(info) = buf;
+      GstMapInfo map;
+      fail_unless(gst_buffer_map(buf, &map, GST_MAP_WRITE));
+      std::memset(map.data, 128, map.size);
+      gst_buffer_unmap(buf, &map);
+    }
+  }
+  return GST_PAD_PROBE_OK;
+}
+
 OrchardRun run_orchard(int w, int h, int frames, const std::string &treemetrics_props,
                        const std::string &scene = "orchard",
-                       const std::string &stereodepth_props = "")
+                       const std::string &stereodepth_props = "", int blank = -1)
 {
   const std::string calib = calibration(w, h);
   const std::string src = "treetestsrc scene=" + scene + " seed=" + std::to_string(kSeed) +
@@ -293,7 +316,7 @@ OrchardRun run_orchard(int w, int h, int frames, const std::string &treemetrics_
                           std::to_string(kSpeed) + " ";
   const std::string desc = "stereorectify name=r calibration=" + calib +
                            " ! exgsegment ! siftmatch ! stereodepth " + stereodepth_props +
-                           " ! treemetrics " +
+                           " ! treemetrics name=tm " +
                            treemetrics_props + " ! fakesink name=out signal-handoffs=true " + src +
                            "view=left ! " + caps_of(w, h) + " ! r.left " + src + "view=right ! " +
                            caps_of(w, h) + " ! r.right";
@@ -304,6 +327,15 @@ OrchardRun run_orchard(int w, int h, int frames, const std::string &treemetrics_
   GstElement *sink = gst_bin_get_by_name(GST_BIN(p), "out");
   g_signal_connect(sink, "handoff", G_CALLBACK(handoff), &r);
   gst_object_unref(sink);
+  Blank blanking;
+  blanking.target = blank;
+  if (blank >= 0) {
+    GstElement *tm = gst_bin_get_by_name(GST_BIN(p), "tm");
+    GstPad *pad = gst_element_get_static_pad(tm, "sink");
+    gst_pad_add_probe(pad, GST_PAD_PROBE_TYPE_BUFFER, blank_frame, &blanking, nullptr);
+    gst_object_unref(pad);
+    gst_object_unref(tm);
+  }
   GstBus *bus = gst_element_get_bus(p);
   gst_element_set_state(p, GST_STATE_PLAYING);
   bool eos = false;
@@ -395,6 +427,42 @@ GST_START_TEST(test_travel_from_stereo_full_size)
   OrchardRun r = run_orchard(1296, 972, n, "trees=false");
   check_travel(r, 1296, 972, n, 0.03, "1296x972");
   fail_unless(r.records.empty(), "trees=false posted records");
+  free_run(r);
+}
+GST_END_TEST;
+
+/* A frame whose views show nothing to track (pixels blanked before treemetrics, its metas
+ * intact): the stereo estimate fails, and the speed of the frames before carries the position
+ * over it (travel-source "predicted"); the position at the end stays within 3 %. */
+GST_START_TEST(test_travel_predicted_over_a_blank_frame)
+{
+  const int n = 6, w = 640, h = 480, blank = 3;
+  OrchardRun r = run_orchard(w, h, n, "trees=false", "orchard", "", blank);
+  fail_unless(r.error == nullptr);
+  fail_unless_equals_int(int(r.frames.size()), n);
+  const SceneRenderer renderer(orchard_params(w, h));
+  for (int k = 1; k < n; k++) {
+    const FrameOut &f = r.frames[std::size_t(k)];
+    const double truth = (renderer.travel_mm(f.frame) -
+                          renderer.travel_mm(r.frames[std::size_t(k) - 1].frame)) / 1000.0;
+    std::printf("blank frame %d: frame %d travel %.4f m (%s), truth %.4f m\n", blank, k,
+                f.travel_m,
+                gst_tree_stereo_travel_source_to_string(GstTreeStereoTravelSource(f.source)),
+                truth);
+    if (k < blank) {
+      fail_unless_equals_int(f.source, GST_TREE_STEREO_TRAVEL_STEREO);
+    } else if (k == blank) {
+      fail_unless_equals_int(f.source, GST_TREE_STEREO_TRAVEL_PREDICTED);
+    } else {
+      fail_unless(f.source != GST_TREE_STEREO_TRAVEL_NONE, "frame %d: no travel", k);
+    }
+    fail_unless(std::fabs(f.travel_m - truth) < 0.07 * truth, "frame %d: travel %.4f m, truth "
+                "%.4f m", k, f.travel_m, truth);
+  }
+  const double truth_pos = (renderer.travel_mm(r.frames.back().frame) -
+                            renderer.travel_mm(r.frames.front().frame)) / 1000.0;
+  fail_unless(std::fabs(r.frames.back().position_m - truth_pos) < 0.03 * truth_pos,
+              "position %.4f m, truth %.4f m", r.frames.back().position_m, truth_pos);
   free_run(r);
 }
 GST_END_TEST;
@@ -538,6 +606,7 @@ static Suite *treemetrics_row_suite(void)
   tcase_add_test(tc, test_row_properties);
   tcase_add_test(tc, test_row_map_bad_path_is_a_named_error);
   tcase_add_test(tc, test_travel_from_stereo_full_size);
+  tcase_add_test(tc, test_travel_predicted_over_a_blank_frame);
   tcase_add_test(tc, test_trees_and_row_map_on_the_orchard);
   tcase_add_test(tc, test_hedgerow_records_are_segments);
   return s;
