@@ -497,8 +497,8 @@ void timing(const Options &o)
     double contrast;
     int inset; // mask-inset (acts on the canopy rows only)
   };
-  // The first three rows of each size: siftmatch's defaults before the fifth session (contrast
-  // 0.04, no inset), before the ninth (0.035, inset 4) and now (0.02, inset 4).
+  // The first three rows of each size: OpenCV's contrast threshold without the inset (0.04, no
+  // inset), 0.035 with inset 4, and siftmatch's defaults (0.02, inset 4).
   const Setting settings[] = {
       {{1296, 972}, 0.5, 0, 0.04, 0},    {{1296, 972}, 0.5, 0, 0.035, 4},
       {{1296, 972}, 0.5, 0, 0.02, 4},    {{1296, 972}, 0.5, 0, 0.035, 0},

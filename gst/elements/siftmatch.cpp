@@ -16,13 +16,13 @@
  * carries no mask) and #siftmatch:mask-inset px (of the detection image) away from its edge;
  * without that meta the whole view is searched. Pixels pass through untouched.
  *
- * SIFT's contrast threshold is 0.02 by default (0.04 until the fifth session, 0.035 until the
- * ninth), with a mask inset of 4: no keypoint within 4 detection px of the canopy's edge, whose
- * descriptor windows straddle the background and whose matches mostly fail the two-layer test.
- * The low threshold became affordable with the upright SIFT: on 36 treetestsrc pairs at
- * 1296x972 it keeps 233 matches per pair in the canopy (163 at 0.035) at the same correct rate
- * (99.55%), and Middlebury Jadeplant reaches 98.2% (97.4%), for about 24% more CPU in the step
- * (docs/elements/siftmatch.md).
+ * SIFT's contrast threshold is 0.02 by default, with a mask inset of 4: no keypoint within 4
+ * detection px of the canopy's edge, whose descriptor windows straddle the background and whose
+ * matches mostly fail the two-layer test. The upright SIFT makes the low threshold affordable: on
+ * 36 treetestsrc pairs at 1296x972 it keeps 233 matches per pair in the canopy (163 at 0.035) at
+ * the same correct rate (99.55%), and Middlebury Jadeplant reaches 98.2% (97.4%), for about 24%
+ * more CPU in the step (docs/results.md, "SIFT contrast threshold 0.02 (2026-12-02, Intel Xeon
+ * host)").
  *
  * The two-layer test is on by default (#siftmatch:layer-tolerance 0.5; lib keeps it off): on 9
  * treetestsrc pairs at 1296x972 it takes the correct-match rate from 91.5% to 99.4% (178 of 526

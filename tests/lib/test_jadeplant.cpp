@@ -1,7 +1,7 @@
 // Depth on real data: Middlebury Jadeplant (a potted plant 2.0-3.3 m away, quarter resolution)
 // through the project's own chain in lib/: the plant segmented by its colour, SIFT matched with
 // the stereo constraints and refined, triangulated. The median depth of the plant's points must
-// be within 1% of the ground-truth median over the same pixels (issue 7's target).
+// be within 1% of the ground-truth median over the same pixels (the accuracy target).
 #include "treestereo/data_dir.hpp"
 #include "treestereo/densify.hpp"
 #include "treestereo/depth.hpp"
