@@ -27,6 +27,7 @@
 #include "sweep.hpp"
 #include "treestereo/data_dir.hpp"
 #include "treestereo/match.hpp"
+#include "treestereo/presets.hpp"
 #include "treestereo/middlebury.hpp"
 #include "treestereo/stats.hpp"
 
@@ -105,25 +106,18 @@ std::vector<Perturbation> perturbations()
   };
 }
 
-// siftmatch's detection defaults where lib's differ: every row detects with them.
+// siftmatch's detection defaults (SiftmatchPreset): every row detects with them. The inset only
+// acts with a mask.
 void detection_defaults(MatchParams &p)
 {
-  p.detect.contrast_threshold = 0.02;
-  p.detect.mask_inset = 4; // only acts with a mask
-  p.detect.engine = SiftEngine::Upright;
+  p.detect = SiftmatchPreset::params().detect;
 }
 constexpr const char *kDetection = "contrast-threshold=0.02, mask-inset=4 (with a mask), upright";
 
-// The "two-layer test on" rows: siftmatch's defaults for the refinement's filters.
+// The "two-layer test on" rows: siftmatch's defaults for the refinement and its filters.
 void filters_on(MatchParams &p)
 {
-  p.refine_params.min_zncc = 0.9;
-  p.refine_params.min_zncc_drop = 0.05;
-  p.refine_params.layer_tolerance = 0.5;
-  p.refine_params.layer_centre_tolerance = 0.7;
-  p.refine_params.layer_min_zncc = 0.7;
-  p.refine_params.layer_centre_min_zncc = 0.6;
-  p.refine_params.relocate = 1;
+  p.refine_params = SiftmatchPreset::params().refine_params;
 }
 constexpr const char *kFiltersOn = "min-zncc=0.9, min-zncc-drop=0.05, layer-tolerance=0.5, "
                                    "layer-centre-tolerance=0.7, layer-min-zncc=0.7, "
@@ -174,14 +168,13 @@ void apply_set(MatchParams &p, const std::string &set)
 MatchParams element_params(const StereoGeometry &g, int width, MatchMethod method, bool filters,
                            const std::string &set)
 {
-  MatchParams p; // lib defaults = siftmatch's defaults for matching
+  MatchParams p;
+  p.matcher = SiftmatchPreset::params().matcher;
   detection_defaults(p);
-  p.detect.scale = 1.0;
-  while (width * p.detect.scale > 648.0)
-    p.detect.scale *= 0.5;
+  p.detect.scale = SiftmatchPreset::auto_scale(width);
   p.matcher.method = method;
-  p.matcher.constraints.epipolar_tolerance = 2.0;
-  const DisparityRange range = disparity_range_for_depth(g, 500, 10000);
+  const DisparityRange range =
+      disparity_range_for_depth(g, SiftmatchPreset::kMinDepthMm, SiftmatchPreset::kMaxDepthMm);
   p.matcher.constraints.min_disparity = range.min;
   p.matcher.constraints.max_disparity = range.max;
   filters_off(p);

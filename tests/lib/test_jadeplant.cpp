@@ -65,8 +65,8 @@ TEST(Jadeplant, MedianDepthOfThePlantWithinOnePercent)
   const Silhouette plant = segment_vegetation(s.left, sp);
   ASSERT_TRUE(plant.present);
 
-  // siftmatch's defaults (euclidean, 2 px band, mutual, refine) with a depth range around the
-  // plant, as a sprayer is set up for its row
+  // lib's matcher (euclidean, 2 px band, mutual, refine; without siftmatch's two-layer test)
+  // with a depth range around the plant, as a sprayer is set up for its row
   MatchParams mp;
   const DisparityRange range = disparity_range_for_depth(g, 1800, 3600);
   mp.matcher.constraints.min_disparity = range.min;

@@ -163,8 +163,8 @@ struct RefineParams {
   int search = 2;        // px around the estimate
   double min_zncc = 0.8; // the correlation peak must be at least this
   double min_zncc_drop = 0; // the peak must exceed the lowest score within +-(search + 1) px by
-                            // at least this (0 = off; siftmatch: 0.05)
-  double layer_tolerance = -1;  // px; negative = off (lib's default; siftmatch's is 0.5)
+                            // at least this (0 = off; SiftmatchPreset: 0.05)
+  double layer_tolerance = -1;  // px; negative = off (SiftmatchPreset: 0.5)
   int layer_half_window = 5;    // quadrants of 6x6 px
   int layer_search = 3;         // px
   double layer_centre_tolerance = -1; // px for the 3x3 centre; negative = layer_tolerance
