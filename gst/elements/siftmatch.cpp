@@ -365,16 +365,13 @@ static void fill_stats(GstTreeStereoMatchStats *out, const Settings &s, const Ma
   out->total_ms = total_ms;
 }
 
-/* Runs the matcher on @buf (read only) and attaches the matches meta. Throws on bad input. */
-static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const Settings &s,
-                         GstTreeStereoMatchStats *out)
+/* Runs the matcher on @buf (read only, with its geometry meta @gm) and attaches the matches
+ * meta. Throws on bad input. */
+static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereoGeometryMeta *gm,
+                         const Settings &s, GstTreeStereoMatchStats *out)
 {
   const auto t0 = std::chrono::steady_clock::now();
   GstVideoFilter *filter = GST_VIDEO_FILTER(self);
-  const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
-  if (!gm)
-    throw std::runtime_error("siftmatch needs rectified stereo pairs from stereorectify: no "
-                             "stereo geometry meta on the buffer");
   const int frame_w = GST_VIDEO_INFO_WIDTH(&filter->in_info);
   const int frame_h = GST_VIDEO_INFO_HEIGHT(&filter->in_info);
   if (int(gm->view_width) * 2 != frame_w || int(gm->view_height) != frame_h)
@@ -432,9 +429,17 @@ static GstFlowReturn gst_sift_match_transform_ip(GstBaseTransform *trans, GstBuf
 {
   GstSiftMatch *self = GST_SIFT_MATCH(trans);
   const Settings s = snapshot(self);
+  const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
+  if (!gm) {
+    GST_ELEMENT_ERROR(self, STREAM, FAILED,
+                      ("No stereo geometry on the buffer: siftmatch needs the geometry meta of "
+                       "stereorectify upstream."),
+                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoGeometryMeta", buf));
+    return GST_FLOW_ERROR;
+  }
   GstTreeStereoMatchStats stats{};
   const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
-    match_buffer(self, buf, s, &stats);
+    match_buffer(self, buf, gm, s, &stats);
     return true;
   });
   if (!ok)

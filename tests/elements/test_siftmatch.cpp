@@ -498,13 +498,20 @@ GST_START_TEST(test_missing_geometry_is_an_error)
   Rig rig = rig_setup("GRAY8", W, H, nullptr);
   fail_unless_equals_int(gst_harness_push(rig.h, side_by_side("GRAY8", l, r, 0)),
                          GST_FLOW_ERROR);
+  /* the same kind of error as stereodepth's and treemetrics': STREAM/FAILED, a sentence that
+   * names what is missing and the element upstream that adds it, the meta's type in the debug */
   GstMessage *msg = gst_bus_pop_filtered(rig.bus, GST_MESSAGE_ERROR);
   fail_unless(msg != nullptr);
   GError *err = nullptr;
-  gst_message_parse_error(msg, &err, nullptr);
-  fail_unless(g_strrstr(err->message, "needs rectified stereo pairs from stereorectify") &&
-                  g_strrstr(err->message, "no stereo geometry meta"),
-              "%s", err->message);
+  gchar *debug = nullptr;
+  gst_message_parse_error(msg, &err, &debug);
+  fail_unless(g_error_matches(err, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED), "%s %d",
+              g_quark_to_string(err->domain), err->code);
+  fail_unless_equals_string(err->message, "No stereo geometry on the buffer: siftmatch needs the "
+                                          "geometry meta of stereorectify upstream.");
+  fail_unless(debug != nullptr && g_strrstr(debug, "has no GstTreeStereoGeometryMeta"), "%s",
+              debug ? debug : "(no debug)");
+  g_free(debug);
   g_error_free(err);
   gst_message_unref(msg);
   rig_teardown(rig);
