@@ -27,8 +27,8 @@
 #include "sweep.hpp"
 #include "treestereo/data_dir.hpp"
 #include "treestereo/match.hpp"
-#include "treestereo/presets.hpp"
 #include "treestereo/middlebury.hpp"
+#include "treestereo/presets.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/imgproc.hpp>
@@ -112,16 +112,34 @@ void detection_defaults(MatchParams &p)
 {
   p.detect = SiftmatchPreset::params().detect;
 }
-constexpr const char *kDetection = "contrast-threshold=0.02, mask-inset=4 (with a mask), upright";
+// The same in words, for the table's heading.
+std::string detection_text()
+{
+  const DetectParams d = SiftmatchPreset::params().detect;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "contrast-threshold=%g, mask-inset=%d (with a mask)%s",
+                d.contrast_threshold, d.mask_inset,
+                d.engine == SiftEngine::Upright ? ", upright" : "");
+  return buf;
+}
 
 // The "two-layer test on" rows: siftmatch's defaults for the refinement and its filters.
 void filters_on(MatchParams &p)
 {
   p.refine_params = SiftmatchPreset::params().refine_params;
 }
-constexpr const char *kFiltersOn = "min-zncc=0.9, min-zncc-drop=0.05, layer-tolerance=0.5, "
-                                   "layer-centre-tolerance=0.7, layer-min-zncc=0.7, "
-                                   "layer-centre-min-zncc=0.6, relocate=1";
+// The same in words, for the table's heading.
+std::string filters_on_text()
+{
+  const RefineParams r = SiftmatchPreset::params().refine_params;
+  char buf[240];
+  std::snprintf(buf, sizeof buf,
+                "min-zncc=%g, min-zncc-drop=%g, layer-tolerance=%g, layer-centre-tolerance=%g, "
+                "layer-min-zncc=%g, layer-centre-min-zncc=%g, relocate=%d",
+                r.min_zncc, r.min_zncc_drop, r.layer_tolerance, r.layer_centre_tolerance,
+                r.layer_min_zncc, r.layer_centre_min_zncc, r.relocate);
+  return buf;
+}
 
 // The two-layer test switched off: the matcher as it was before it.
 void filters_off(MatchParams &p)
@@ -268,7 +286,8 @@ void table(const std::vector<Pair> &pairs, const Options &o)
               "min: the pair with the fewest. ms: median of %d run(s) per pair of the whole "
               "step (detection of both views, matching, refinement, two-layer test). Detection: "
               "%s. Two-layer test on: %s%s%s.\n\n",
-              o.runs, kDetection, kFiltersOn, o.set.empty() ? "" : ", then --set ", o.set.c_str());
+              o.runs, detection_text().c_str(), filters_on_text().c_str(),
+              o.set.empty() ? "" : ", then --set ", o.set.c_str());
   std::printf("| condition | method | constraints | two-layer test | keypoints L | keypoints R "
               "| matches | min matches | evaluated | wrong | correct %% | ms |\n"
               "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
