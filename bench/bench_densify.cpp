@@ -28,6 +28,7 @@
 #include "treestereo/depth.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/metrics.hpp"
+#include "treestereo/presets.hpp"
 #include "treestereo/rectify.hpp"
 #include "treestereo/scene.hpp"
 #include "treestereo/segment.hpp"
@@ -147,9 +148,7 @@ int main(int argc, char **argv)
           const DisparityRange dr = disparity_range_for_depth(g, 500, 10000);
           mp.matcher.constraints.min_disparity = dr.min;
           mp.matcher.constraints.max_disparity = dr.max;
-          mp.detect.scale = 1.0;
-          while (size.width * mp.detect.scale > 648.0)
-            mp.detect.scale *= 0.5;
+          mp.detect.scale = SiftmatchPreset::auto_scale(size.width);
           const StereoMatchResult mr = match_stereo(rv[LEFT], rv[RIGHT], segl.mask, segr.mask, mp);
 
           const auto t0 = std::chrono::steady_clock::now();

@@ -14,6 +14,7 @@
 #include "sweep.hpp"
 #include "treestereo/depth.hpp"
 #include "treestereo/match.hpp"
+#include "treestereo/presets.hpp"
 #include "treestereo/metrics.hpp"
 #include "treestereo/rectify.hpp"
 #include "treestereo/scene.hpp"
@@ -111,9 +112,7 @@ int main(int argc, char **argv)
         const DisparityRange dr_ = disparity_range_for_depth(g, 500, 10000);
         mp.matcher.constraints.min_disparity = dr_.min;
         mp.matcher.constraints.max_disparity = dr_.max;
-        mp.detect.scale = 1.0;
-        while (w * mp.detect.scale > 648.0)
-          mp.detect.scale *= 0.5;
+        mp.detect.scale = SiftmatchPreset::auto_scale(w);
         const StereoMatchResult mr = match_stereo(rv[LEFT], rv[RIGHT], seg.mask, segr.mask, mp);
         const DepthResult dres = triangulate_matches(mr.matches, g, DepthParams());
 

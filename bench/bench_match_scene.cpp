@@ -28,6 +28,7 @@
 #include "treestereo/data_dir.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/middlebury.hpp"
+#include "treestereo/presets.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/imgproc.hpp>
@@ -105,29 +106,40 @@ std::vector<Perturbation> perturbations()
   };
 }
 
-// siftmatch's detection defaults where lib's differ: every row detects with them.
+// siftmatch's detection defaults (SiftmatchPreset): every row detects with them. The inset only
+// acts with a mask.
 void detection_defaults(MatchParams &p)
 {
-  p.detect.contrast_threshold = 0.02;
-  p.detect.mask_inset = 4; // only acts with a mask
-  p.detect.engine = SiftEngine::Upright;
+  p.detect = SiftmatchPreset::params().detect;
 }
-constexpr const char *kDetection = "contrast-threshold=0.02, mask-inset=4 (with a mask), upright";
+// The same in words, for the table's heading.
+std::string detection_text()
+{
+  const DetectParams d = SiftmatchPreset::params().detect;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "contrast-threshold=%g, mask-inset=%d (with a mask)%s",
+                d.contrast_threshold, d.mask_inset,
+                d.engine == SiftEngine::Upright ? ", upright" : "");
+  return buf;
+}
 
-// The "two-layer test on" rows: siftmatch's defaults for the refinement's filters.
+// The "two-layer test on" rows: siftmatch's defaults for the refinement and its filters.
 void filters_on(MatchParams &p)
 {
-  p.refine_params.min_zncc = 0.9;
-  p.refine_params.min_zncc_drop = 0.05;
-  p.refine_params.layer_tolerance = 0.5;
-  p.refine_params.layer_centre_tolerance = 0.7;
-  p.refine_params.layer_min_zncc = 0.7;
-  p.refine_params.layer_centre_min_zncc = 0.6;
-  p.refine_params.relocate = 1;
+  p.refine_params = SiftmatchPreset::params().refine_params;
 }
-constexpr const char *kFiltersOn = "min-zncc=0.9, min-zncc-drop=0.05, layer-tolerance=0.5, "
-                                   "layer-centre-tolerance=0.7, layer-min-zncc=0.7, "
-                                   "layer-centre-min-zncc=0.6, relocate=1";
+// The same in words, for the table's heading.
+std::string filters_on_text()
+{
+  const RefineParams r = SiftmatchPreset::params().refine_params;
+  char buf[240];
+  std::snprintf(buf, sizeof buf,
+                "min-zncc=%g, min-zncc-drop=%g, layer-tolerance=%g, layer-centre-tolerance=%g, "
+                "layer-min-zncc=%g, layer-centre-min-zncc=%g, relocate=%d",
+                r.min_zncc, r.min_zncc_drop, r.layer_tolerance, r.layer_centre_tolerance,
+                r.layer_min_zncc, r.layer_centre_min_zncc, r.relocate);
+  return buf;
+}
 
 // The two-layer test switched off: the matcher as it was before it.
 void filters_off(MatchParams &p)
@@ -174,14 +186,13 @@ void apply_set(MatchParams &p, const std::string &set)
 MatchParams element_params(const StereoGeometry &g, int width, MatchMethod method, bool filters,
                            const std::string &set)
 {
-  MatchParams p; // lib defaults = siftmatch's defaults for matching
+  MatchParams p;
+  p.matcher = SiftmatchPreset::params().matcher;
   detection_defaults(p);
-  p.detect.scale = 1.0;
-  while (width * p.detect.scale > 648.0)
-    p.detect.scale *= 0.5;
+  p.detect.scale = SiftmatchPreset::auto_scale(width);
   p.matcher.method = method;
-  p.matcher.constraints.epipolar_tolerance = 2.0;
-  const DisparityRange range = disparity_range_for_depth(g, 500, 10000);
+  const DisparityRange range =
+      disparity_range_for_depth(g, SiftmatchPreset::kMinDepthMm, SiftmatchPreset::kMaxDepthMm);
   p.matcher.constraints.min_disparity = range.min;
   p.matcher.constraints.max_disparity = range.max;
   filters_off(p);
@@ -275,7 +286,8 @@ void table(const std::vector<Pair> &pairs, const Options &o)
               "min: the pair with the fewest. ms: median of %d run(s) per pair of the whole "
               "step (detection of both views, matching, refinement, two-layer test). Detection: "
               "%s. Two-layer test on: %s%s%s.\n\n",
-              o.runs, kDetection, kFiltersOn, o.set.empty() ? "" : ", then --set ", o.set.c_str());
+              o.runs, detection_text().c_str(), filters_on_text().c_str(),
+              o.set.empty() ? "" : ", then --set ", o.set.c_str());
   std::printf("| condition | method | constraints | two-layer test | keypoints L | keypoints R "
               "| matches | min matches | evaluated | wrong | correct %% | ms |\n"
               "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -497,8 +509,8 @@ void timing(const Options &o)
     double contrast;
     int inset; // mask-inset (acts on the canopy rows only)
   };
-  // The first three rows of each size: siftmatch's defaults before the fifth session (contrast
-  // 0.04, no inset), before the ninth (0.035, inset 4) and now (0.02, inset 4).
+  // The first three rows of each size: OpenCV's contrast threshold without the inset (0.04, no
+  // inset), 0.035 with inset 4, and siftmatch's defaults (0.02, inset 4).
   const Setting settings[] = {
       {{1296, 972}, 0.5, 0, 0.04, 0},    {{1296, 972}, 0.5, 0, 0.035, 4},
       {{1296, 972}, 0.5, 0, 0.02, 4},    {{1296, 972}, 0.5, 0, 0.035, 0},

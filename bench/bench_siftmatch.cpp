@@ -1,5 +1,5 @@
-// The siftmatch element's work per frame (StereoMatcher::run with the element's defaults) at the
-// camera sizes of the design: Middlebury Jadeplant resized to 1296x972 and 2592x1944 (ground
+// The siftmatch element's work per frame (StereoMatcher::run with the element's defaults, lib's
+// SiftmatchPreset) at the camera sizes of the design: Middlebury Jadeplant resized to 1296x972 and 2592x1944 (ground
 // truth disparities scaled alike), whole views and a canopy mask, at several detection scales.
 //
 //   ./build/bench/bench-siftmatch [data dir] [runs]
@@ -7,6 +7,7 @@
 #include "treestereo/data_dir.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/middlebury.hpp"
+#include "treestereo/presets.hpp"
 #include "treestereo/rectify.hpp"
 #include "treestereo/scene.hpp"
 #include "treestereo/stats.hpp"
@@ -74,13 +75,9 @@ void scene_table(cv::Size size, int runs)
         const bench::ScenePair pair = bench::render_pair(sp);
         const cv::Mat *view = pair.view, *mask = pair.mask;
         const cv::Mat &d_true = pair.d_true;
-        const DisparityRange range = disparity_range_for_depth(pair.geometry, 500, 10000);
-        MatchParams p; // the element's defaults; scale 0.5 = its automatic scale at 1296
-        p.detect.scale = size.width > 648 ? (size.width > 1296 ? 0.25 : 0.5) : 1.0;
+        // the element's defaults at this size: automatic scale, disparities of 0.5..10 m
+        MatchParams p = SiftmatchPreset::for_view(pair.geometry, size.width);
         p.matcher.method = method;
-        p.matcher.constraints.epipolar_tolerance = 2.0;
-        p.matcher.constraints.min_disparity = range.min;
-        p.matcher.constraints.max_disparity = range.max;
         const StereoMatcher matcher(p);
         StereoMatchResult r;
         for (int i = 0; i < runs; ++i) {
@@ -125,12 +122,10 @@ int main(int argc, char **argv)
     const double scales[] = {0.5, 0.25, 0.125};
     for (double scale : scales) {
       for (bool masked : {false, true}) {
-        // The element's defaults (euclidean, ratio 0.8, band 2 px, mutual, refine); the
-        // disparity range from the scene's ndisp as a depth range would give.
-        MatchParams p;
+        // The element's defaults at this scale; the disparity range from the scene's ndisp as
+        // a depth range would give.
+        MatchParams p = SiftmatchPreset::params();
         p.detect.scale = scale;
-        p.matcher.method = MatchMethod::Euclidean;
-        p.matcher.constraints.epipolar_tolerance = 2.0;
         p.matcher.constraints.min_disparity = 0;
         p.matcher.constraints.max_disparity = s.max_disparity;
         const StereoMatcher matcher(p);

@@ -6,8 +6,8 @@
 #   bench/callgrind-step.sh [BUILD_DIR] [SETTING...]
 #
 # Each SETTING is a bench-match-scene --set list on top of siftmatch's defaults ("" = the
-# defaults); without any: the defaults before the fifth session (contrast-threshold=0.04,
-# mask-inset=0) and now. The step's count is (runs=N) - (runs=0), over N (RUNS, default 2), so
+# defaults); without any: OpenCV's contrast threshold without the inset (contrast-threshold=0.04,
+# mask-inset=0) and the defaults. The step's count is (runs=N) - (runs=0), over N (RUNS, default 2), so
 # rendering the pair is not counted. Takes about a minute per setting.
 set -eu
 cd "$(dirname "$0")/.."

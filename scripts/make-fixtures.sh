@@ -5,7 +5,7 @@
 #   seq-orchard: the orchard scene (neighbours in the row, a row behind, grass), seed 3, trunk
 #     at 2.0 m, driving slowly (0.3 m/s, 7 fps), light 1.0, JPEG quality 80 (under 1 MB)
 # Each: 8 frame pairs 640x480 as left_%04d.jpg / right_%04d.jpg, calibration.yml, truth.json.
-#   sweep-1296: issue 7's accuracy conditions at the size its targets are for: 5 pairs 1296x972
+#   sweep-1296: the accuracy targets' conditions at the size they are for: 5 pairs 1296x972
 #     (JPEG quality 90), pair k (0..4) is tree seed k+1 with its trunk at 1.8 + 0.1 k m; one
 #     calibration (the rig does not change), truth.json with the frames of the five renders.
 #   seq-driveby: a drive-by along the orchard row at 2 m/s (7 fps), seed 4, trunks at 2.0 m, gaps

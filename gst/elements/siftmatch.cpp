@@ -16,13 +16,13 @@
  * carries no mask) and #siftmatch:mask-inset px (of the detection image) away from its edge;
  * without that meta the whole view is searched. Pixels pass through untouched.
  *
- * SIFT's contrast threshold is 0.02 by default (0.04 until the fifth session, 0.035 until the
- * ninth), with a mask inset of 4: no keypoint within 4 detection px of the canopy's edge, whose
- * descriptor windows straddle the background and whose matches mostly fail the two-layer test.
- * The low threshold became affordable with the upright SIFT: on 36 treetestsrc pairs at
- * 1296x972 it keeps 233 matches per pair in the canopy (163 at 0.035) at the same correct rate
- * (99.55%), and Middlebury Jadeplant reaches 98.2% (97.4%), for about 24% more CPU in the step
- * (docs/elements/siftmatch.md).
+ * SIFT's contrast threshold is 0.02 by default, with a mask inset of 4: no keypoint within 4
+ * detection px of the canopy's edge, whose descriptor windows straddle the background and whose
+ * matches mostly fail the two-layer test. The upright SIFT makes the low threshold affordable: on
+ * 36 treetestsrc pairs at 1296x972 it keeps 233 matches per pair in the canopy (163 at 0.035) at
+ * the same correct rate (99.55%), and Middlebury Jadeplant reaches 98.2% (97.4%), for about 24%
+ * more CPU in the step (docs/results.md, "SIFT contrast threshold 0.02 (2026-12-02, Intel Xeon
+ * host)").
  *
  * The two-layer test is on by default (#siftmatch:layer-tolerance 0.5; lib keeps it off): on 9
  * treetestsrc pairs at 1296x972 it takes the correct-match rate from 91.5% to 99.4% (178 of 526
@@ -73,6 +73,7 @@
 #include "elements.hpp"
 
 #include "treestereo/match.hpp"
+#include "treestereo/presets.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -86,36 +87,12 @@ GST_DEBUG_CATEGORY_STATIC(siftmatch_debug);
 
 using namespace treestereo;
 
-/* Defaults: see docs/elements/siftmatch.md for the measurements behind them. */
-#define DEFAULT_METHOD GST_TREE_STEREO_MATCH_EUCLIDEAN
-#define DEFAULT_RATIO 0.8
-#define DEFAULT_CANDIDATES 5
-#define DEFAULT_EPIPOLAR_TOLERANCE 2.0
-#define DEFAULT_MIN_DISPARITY (-1.0)
-#define DEFAULT_MAX_DISPARITY (-1.0)
-#define DEFAULT_MIN_DEPTH 500.0
-#define DEFAULT_MAX_DEPTH 10000.0
-#define DEFAULT_MUTUAL TRUE
-#define DEFAULT_NFEATURES 0
-#define DEFAULT_CONTRAST_THRESHOLD 0.02
-#define DEFAULT_SCALE 0.0
-#define DEFAULT_USE_MASK TRUE
-#define DEFAULT_UPRIGHT TRUE
-#define DEFAULT_MASK_INSET 4
-#define DEFAULT_REFINE TRUE
-#define DEFAULT_MIN_ZNCC 0.9
-#define DEFAULT_MIN_ZNCC_DROP 0.05
-#define DEFAULT_LAYER_TOLERANCE 0.5 /* on: see the doc block and docs/elements/siftmatch.md */
-#define DEFAULT_LAYER_WINDOW 5
-#define DEFAULT_LAYER_SEARCH 3
-#define DEFAULT_LAYER_CENTRE_TOLERANCE 0.7
-#define DEFAULT_LAYER_MIN_ZNCC 0.7
-#define DEFAULT_LAYER_CENTRE_MIN_ZNCC 0.6
-#define DEFAULT_RELOCATE 1
+/* Defaults: lib's SiftmatchPreset (treestereo/presets.hpp), which benches and tools share; see
+ * docs/elements/siftmatch.md for the measurements behind them. The element's own: */
+#define DEFAULT_MIN_DISPARITY (-1.0) /* from max-depth and the geometry */
+#define DEFAULT_MAX_DISPARITY (-1.0) /* from min-depth and the geometry */
+#define DEFAULT_SCALE 0.0            /* automatic: SiftmatchPreset::auto_scale */
 #define DEFAULT_POST_MESSAGES TRUE
-/* scale=0 (automatic) detects on a copy at most this wide: SIFT upsamples it 2x internally, so
- * its base octave is then at most 1296 px wide whatever the camera's resolution. */
-#define AUTO_SCALE_WIDTH 648.0
 #define MAX_DISPARITY_LIMIT 100000.0
 
 enum {
@@ -150,32 +127,45 @@ enum {
 
 namespace {
 
+/* siftmatch's defaults, from lib (the property defaults and the settings' initial values). */
+const MatchParams &preset()
+{
+  static const MatchParams p = SiftmatchPreset::params();
+  return p;
+}
+
+GstTreeStereoMatchMethod method_to_gst(MatchMethod m)
+{
+  return m == MatchMethod::CosineNorm ? GST_TREE_STEREO_MATCH_COSINE_NORM
+                                      : GST_TREE_STEREO_MATCH_EUCLIDEAN;
+}
+
 struct Settings {
-  GstTreeStereoMatchMethod method = DEFAULT_METHOD;
-  double ratio = DEFAULT_RATIO;
-  int candidates = DEFAULT_CANDIDATES;
-  double epipolar_tolerance = DEFAULT_EPIPOLAR_TOLERANCE;
+  GstTreeStereoMatchMethod method = method_to_gst(preset().matcher.method);
+  double ratio = preset().matcher.ratio;
+  int candidates = preset().matcher.candidates;
+  double epipolar_tolerance = preset().matcher.constraints.epipolar_tolerance;
   double min_disparity = DEFAULT_MIN_DISPARITY;
   double max_disparity = DEFAULT_MAX_DISPARITY;
-  double min_depth = DEFAULT_MIN_DEPTH;
-  double max_depth = DEFAULT_MAX_DEPTH;
-  bool mutual = DEFAULT_MUTUAL;
-  int nfeatures = DEFAULT_NFEATURES;
-  double contrast_threshold = DEFAULT_CONTRAST_THRESHOLD;
+  double min_depth = SiftmatchPreset::kMinDepthMm;
+  double max_depth = SiftmatchPreset::kMaxDepthMm;
+  bool mutual = preset().matcher.constraints.mutual;
+  int nfeatures = preset().detect.nfeatures;
+  double contrast_threshold = preset().detect.contrast_threshold;
   double scale = DEFAULT_SCALE;
-  bool use_mask = DEFAULT_USE_MASK;
-  bool upright = DEFAULT_UPRIGHT;
-  int mask_inset = DEFAULT_MASK_INSET;
-  bool refine = DEFAULT_REFINE;
-  double min_zncc = DEFAULT_MIN_ZNCC;
-  double min_zncc_drop = DEFAULT_MIN_ZNCC_DROP;
-  double layer_tolerance = DEFAULT_LAYER_TOLERANCE;
-  int layer_window = DEFAULT_LAYER_WINDOW;
-  int layer_search = DEFAULT_LAYER_SEARCH;
-  double layer_centre_tolerance = DEFAULT_LAYER_CENTRE_TOLERANCE;
-  double layer_min_zncc = DEFAULT_LAYER_MIN_ZNCC;
-  double layer_centre_min_zncc = DEFAULT_LAYER_CENTRE_MIN_ZNCC;
-  int relocate = DEFAULT_RELOCATE;
+  bool use_mask = preset().detect.use_mask;
+  bool upright = preset().detect.engine == SiftEngine::Upright;
+  int mask_inset = preset().detect.mask_inset;
+  bool refine = preset().refine;
+  double min_zncc = preset().refine_params.min_zncc;
+  double min_zncc_drop = preset().refine_params.min_zncc_drop;
+  double layer_tolerance = preset().refine_params.layer_tolerance;
+  int layer_window = preset().refine_params.layer_half_window;
+  int layer_search = preset().refine_params.layer_search;
+  double layer_centre_tolerance = preset().refine_params.layer_centre_tolerance;
+  double layer_min_zncc = preset().refine_params.layer_min_zncc;
+  double layer_centre_min_zncc = preset().refine_params.layer_centre_min_zncc;
+  int relocate = preset().refine_params.relocate;
   bool post_messages = DEFAULT_POST_MESSAGES;
   guint64 generation = 0; // bumped by every change that needs a new StereoMatcher
 };
@@ -247,16 +237,10 @@ static Settings snapshot(GstSiftMatch *self)
   return self->state->settings;
 }
 
-/* scale=0: the largest of 1, 1/2, 1/4, ... that brings the view to AUTO_SCALE_WIDTH or below.
- * Powers of two keep the keypoints of different camera resolutions comparable. */
+/* scale=0: automatic (SiftmatchPreset::auto_scale of the view's width). */
 static double resolve_scale(double scale, int view_width)
 {
-  if (scale > 0)
-    return scale;
-  double s = 1.0;
-  while (view_width * s > AUTO_SCALE_WIDTH)
-    s *= 0.5;
-  return s;
+  return scale > 0 ? scale : SiftmatchPreset::auto_scale(view_width);
 }
 
 /* The matcher for these settings and this frame's geometry, rebuilt only when they changed. */
@@ -292,7 +276,7 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   if (st->matcher && st->key == key)
     return *st->matcher;
 
-  MatchParams p;
+  MatchParams p = SiftmatchPreset::params(); // then every field the properties set
   p.detect.nfeatures = s.nfeatures;
   p.detect.contrast_threshold = s.contrast_threshold;
   p.detect.scale = key.scale;
@@ -381,16 +365,13 @@ static void fill_stats(GstTreeStereoMatchStats *out, const Settings &s, const Ma
   out->total_ms = total_ms;
 }
 
-/* Runs the matcher on @buf (read only) and attaches the matches meta. Throws on bad input. */
-static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const Settings &s,
-                         GstTreeStereoMatchStats *out)
+/* Runs the matcher on @buf (read only, with its geometry meta @gm) and attaches the matches
+ * meta. Throws on bad input. */
+static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereoGeometryMeta *gm,
+                         const Settings &s, GstTreeStereoMatchStats *out)
 {
   const auto t0 = std::chrono::steady_clock::now();
   GstVideoFilter *filter = GST_VIDEO_FILTER(self);
-  const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
-  if (!gm)
-    throw std::runtime_error("siftmatch needs rectified stereo pairs from stereorectify: no "
-                             "stereo geometry meta on the buffer");
   const int frame_w = GST_VIDEO_INFO_WIDTH(&filter->in_info);
   const int frame_h = GST_VIDEO_INFO_HEIGHT(&filter->in_info);
   if (int(gm->view_width) * 2 != frame_w || int(gm->view_height) != frame_h)
@@ -448,9 +429,17 @@ static GstFlowReturn gst_sift_match_transform_ip(GstBaseTransform *trans, GstBuf
 {
   GstSiftMatch *self = GST_SIFT_MATCH(trans);
   const Settings s = snapshot(self);
+  const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
+  if (!gm) {
+    GST_ELEMENT_ERROR(self, STREAM, FAILED,
+                      ("No stereo geometry on the buffer: siftmatch needs the geometry meta of "
+                       "stereorectify upstream."),
+                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoGeometryMeta", buf));
+    return GST_FLOW_ERROR;
+  }
   GstTreeStereoMatchStats stats{};
   const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
-    match_buffer(self, buf, s, &stats);
+    match_buffer(self, buf, gm, s, &stats);
     return true;
   });
   if (!ok)
@@ -707,6 +696,7 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
   GstElementClass *element_class = GST_ELEMENT_CLASS(klass);
   GstBaseTransformClass *trans_class = GST_BASE_TRANSFORM_CLASS(klass);
   GstVideoFilterClass *filter_class = GST_VIDEO_FILTER_CLASS(klass);
+  const MatchParams &d = preset();
 
   GST_DEBUG_CATEGORY_INIT(siftmatch_debug, "siftmatch", 0, "treestereo siftmatch");
 
@@ -718,21 +708,22 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
       gobject_class, PROP_METHOD,
       g_param_spec_enum("method", "Method", "How a keypoint's partner is chosen among the "
                         "candidates that satisfy the stereo constraints",
-                        GST_TYPE_SIFT_MATCH_METHOD, DEFAULT_METHOD, PROP_FLAGS));
+                        GST_TYPE_SIFT_MATCH_METHOD, method_to_gst(d.matcher.method),
+                        PROP_FLAGS));
   install_double(gobject_class, PROP_RATIO, "ratio", "Ratio",
                  "Ratio test: keep a match only when its distance (euclidean) or angle "
                  "(cosine-norm) is below ratio x the second best's; 1 turns the test off",
-                 0.01, 1.0, DEFAULT_RATIO);
+                 0.01, 1.0, d.matcher.ratio);
   g_object_class_install_property(
       gobject_class, PROP_CANDIDATES,
       g_param_spec_int("candidates", "Candidates",
                        "cosine-norm: how many smallest angles compete on the norm difference",
-                       1, 128, DEFAULT_CANDIDATES, PROP_FLAGS));
+                       1, 128, d.matcher.candidates, PROP_FLAGS));
   install_double(gobject_class, PROP_EPIPOLAR_TOLERANCE, "epipolar-tolerance",
                  "Epipolar tolerance",
                  "Largest row difference |yl - yr| (px) of a candidate; negative = no epipolar "
                  "constraint (every keypoint of the other view is a candidate)",
-                 -1.0, 1000.0, DEFAULT_EPIPOLAR_TOLERANCE);
+                 -1.0, 1000.0, d.matcher.constraints.epipolar_tolerance);
   install_double(gobject_class, PROP_MIN_DISPARITY, "min-disparity", "Minimum disparity",
                  "Smallest disparity xl - xr (px); -1 = from max-depth and the stereo geometry",
                  -1.0, MAX_DISPARITY_LIMIT, DEFAULT_MIN_DISPARITY);
@@ -741,20 +732,20 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
                  -1.0, MAX_DISPARITY_LIMIT, DEFAULT_MAX_DISPARITY);
   install_double(gobject_class, PROP_MIN_DEPTH, "min-depth", "Minimum depth",
                  "Nearest depth (mm) searched when max-disparity is -1", 1.0, 1e6,
-                 DEFAULT_MIN_DEPTH);
+                 SiftmatchPreset::kMinDepthMm);
   install_double(gobject_class, PROP_MAX_DEPTH, "max-depth", "Maximum depth",
                  "Farthest depth (mm) searched when min-disparity is -1", 1.0, 1e7,
-                 DEFAULT_MAX_DEPTH);
+                 SiftmatchPreset::kMaxDepthMm);
   install_boolean(gobject_class, PROP_MUTUAL, "mutual", "Mutual",
                   "Keep a match only when matching back from the other view picks the same pair",
-                  DEFAULT_MUTUAL);
+                  d.matcher.constraints.mutual);
   g_object_class_install_property(
       gobject_class, PROP_NFEATURES,
       g_param_spec_int("nfeatures", "Features", "Keep the N strongest keypoints per view; 0 = all",
-                       0, G_MAXINT, DEFAULT_NFEATURES, PROP_FLAGS));
+                       0, G_MAXINT, d.detect.nfeatures, PROP_FLAGS));
   install_double(gobject_class, PROP_CONTRAST_THRESHOLD, "contrast-threshold",
                  "Contrast threshold", "SIFT's contrast threshold (larger: fewer, stronger "
-                 "keypoints)", 0.001, 1.0, DEFAULT_CONTRAST_THRESHOLD);
+                 "keypoints)", 0.001, 1.0, d.detect.contrast_threshold);
   install_double(gobject_class, PROP_SCALE, "scale", "Scale",
                  "Detect on the views resized by this factor (keypoints are reported and "
                  "refined at full resolution); 0 = automatic: 1, 1/2, 1/4... whichever first "
@@ -762,66 +753,66 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
                  0.0, 1.0, DEFAULT_SCALE);
   install_boolean(gobject_class, PROP_USE_MASK, "use-mask", "Use mask",
                   "Detect only inside the canopy of the vegetation meta (when there is one)",
-                  DEFAULT_USE_MASK);
+                  d.detect.use_mask);
   install_boolean(gobject_class, PROP_UPRIGHT, "upright", "Upright",
                   "Describe each keypoint once, at angle 0, with treestereo's own SIFT (on "
                   "rectified views the rows are the epipolar lines: no orientation is needed), "
                   "and only those with a candidate in the other view; false: OpenCV's SIFT, one "
                   "descriptor per dominant orientation",
-                  DEFAULT_UPRIGHT);
+                  d.detect.engine == SiftEngine::Upright);
   g_object_class_install_property(
       gobject_class, PROP_MASK_INSET, g_param_spec_int(
           "mask-inset", "Mask inset",
           "With use-mask: keep no keypoint within this many px (of the detection image, see "
           "scale) of the canopy's edge, where the descriptor window straddles the background; "
           "0 = the whole canopy",
-          0, 64, DEFAULT_MASK_INSET, PROP_FLAGS));
+          0, 64, d.detect.mask_inset, PROP_FLAGS));
   install_boolean(gobject_class, PROP_REFINE, "refine", "Refine",
                   "Refine each disparity to sub-pixel by correlation at full resolution and "
                   "drop matches without a clear correlation peak",
-                  DEFAULT_REFINE);
+                  d.refine);
   install_double(gobject_class, PROP_MIN_ZNCC, "min-zncc", "Minimum ZNCC",
                  "Refinement: drop a match whose 7x7 correlation peak is below this", -1.0, 1.0,
-                 DEFAULT_MIN_ZNCC);
+                 d.refine_params.min_zncc);
   install_double(gobject_class, PROP_MIN_ZNCC_DROP, "min-zncc-drop", "Minimum ZNCC drop",
                  "Refinement: drop a match whose 7x7 correlation stays within this of its peak "
                  "over the whole search (+-3 px): a horizontal edge or a patch without horizontal "
                  "structure correlates about as well at every position; 0 = off",
-                 0.0, 2.0, DEFAULT_MIN_ZNCC_DROP);
+                 0.0, 2.0, d.refine_params.min_zncc_drop);
   install_double(gobject_class, PROP_LAYER_TOLERANCE, "layer-tolerance", "Layer tolerance",
                  "Two-layer test after refinement: the four quadrants of the layer window and "
                  "its 3x3 centre, each correlated on its own, must all peak within this many px "
                  "of the refined disparity (rejects keypoints beside a depth edge that took the "
                  "foreground's disparity); negative = off (needs refine)",
-                 -1.0, 100.0, DEFAULT_LAYER_TOLERANCE);
+                 -1.0, 100.0, d.refine_params.layer_tolerance);
   g_object_class_install_property(
       gobject_class, PROP_LAYER_WINDOW,
       g_param_spec_int("layer-window", "Layer window",
                        "Two-layer test: half size of its window (px at full resolution for a "
                        "detection scale >= 0.5, times 0.5 / scale below it; 5 = 11x11, "
                        "quadrants of 6x6)",
-                       1, 32, DEFAULT_LAYER_WINDOW, PROP_FLAGS));
+                       1, 32, d.refine_params.layer_half_window, PROP_FLAGS));
   g_object_class_install_property(
       gobject_class, PROP_LAYER_SEARCH,
       g_param_spec_int("layer-search", "Layer search",
                        "Two-layer test: how far (px) each part is searched around the refined "
                        "disparity",
-                       1, 32, DEFAULT_LAYER_SEARCH, PROP_FLAGS));
+                       1, 32, d.refine_params.layer_search, PROP_FLAGS));
   install_double(gobject_class, PROP_LAYER_CENTRE_TOLERANCE, "layer-centre-tolerance",
                  "Layer centre tolerance",
                  "Two-layer test: the tolerance (px) of the 3x3 centre's peak, whose 9 pixels "
                  "place it less precisely than a quadrant's; negative = layer-tolerance",
-                 -1.0, 100.0, DEFAULT_LAYER_CENTRE_TOLERANCE);
+                 -1.0, 100.0, d.refine_params.layer_centre_tolerance);
   install_double(gobject_class, PROP_LAYER_MIN_ZNCC, "layer-min-zncc", "Layer minimum ZNCC",
                  "Two-layer test: each quadrant's correlation at the refined disparity must reach "
                  "this (a part of the window on another depth layer, or hidden in the right "
                  "view, correlates poorly there); -1 = no minimum",
-                 -1.0, 1.0, DEFAULT_LAYER_MIN_ZNCC);
+                 -1.0, 1.0, d.refine_params.layer_min_zncc);
   install_double(gobject_class, PROP_LAYER_CENTRE_MIN_ZNCC, "layer-centre-min-zncc",
                  "Layer centre minimum ZNCC",
                  "Two-layer test: the 3x3 centre's correlation at the refined disparity must "
                  "reach this; -1 = no minimum",
-                 -1.0, 1.0, DEFAULT_LAYER_CENTRE_MIN_ZNCC);
+                 -1.0, 1.0, d.refine_params.layer_centre_min_zncc);
   g_object_class_install_property(
       gobject_class, PROP_RELOCATE,
       g_param_spec_int("relocate", "Relocate",
@@ -829,7 +820,7 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
                        "disparity belongs to (the one whose 3x3 patch agrees best with the right "
                        "view at that disparity), e.g. off a dark gap between two near leaves "
                        "onto a leaf; 0 = off (needs refine)",
-                       0, 3, DEFAULT_RELOCATE, PROP_FLAGS));
+                       0, 3, d.refine_params.relocate, PROP_FLAGS));
   install_boolean(gobject_class, PROP_POST_MESSAGES, "post-messages", "Post messages",
                   "Post a siftmatch element message per frame", DEFAULT_POST_MESSAGES);
 

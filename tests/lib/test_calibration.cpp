@@ -410,19 +410,19 @@ TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
       // OpenCV unchecked: compressed files are decompressed and checked like plain ones
       {"hang4.yml.gz", "%YAML:1.0\n   rows: 1\n A---\nx",
        "line 2 is indented, but a calibration file's top level starts at column 0"},
-      // an indented "-" after the document's end "..." (the class of the fifth session's CI
-      // timeout)
+      // an indented "-" after the document's end "..." (the class of a fuzz-calibration
+      // timeout in CI)
       {"hang5.yml", "%YAML:1.0\na: 1\n...\n  - 1\n",
        "line 4 follows the end of the document ('...' on line 3)"},
       {"hang6.yml", "%YAML:1.0\na: {b: 1}\n... \n -\n",
        "line 4 follows the end of the document ('...' on line 3)"},
-      // "---" with text after it, repeated (fuzzing, sixth session); a second document is
+      // "---" with text after it, repeated (found by fuzzing); a second document is
       // refused by the same rule
       {"hang8.yml", "--- - \xc3\n--- -\xc3\n--- \xc3\n--- --- d",
        "line 1 has text after the document marker '---'"},
       {"twodocs.yml", "%YAML:1.0\n---\na: 1\n---\n -\n",
        "line 4 starts a second YAML document: a calibration file holds one"},
-      // the file ends after an attribute's '=' (a null pointer read in OpenCV, eighth session)
+      // the file ends after an attribute's '=' (a null pointer read in OpenCV's parser)
       {"cut.xml", "<?xml version=\"1.0\"?>\n<opencv_storage>\n<M1 type_id=",
        "line 3 expects the value of the attribute 'type_id' in quotes"},
   };

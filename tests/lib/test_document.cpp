@@ -215,7 +215,7 @@ TEST(Document, XmlErrorsNameTheLine)
     std::string text;
     const char *error;
   } cases[] = {
-      // OpenCV 4.6 dereferences a null pointer on this one (fuzz-calibration, eighth session)
+      // OpenCV 4.6 dereferences a null pointer on this one (found by fuzz-calibration)
       {head + "<M1 type_id=", "line 3 expects the value of the attribute 'type_id' in quotes"},
       {head + "<M1 type_id", "line 3 expects '=' after the attribute 'type_id' of <M1>"},
       {head + "<M1", "line 3 opens <M1> but the file ends inside the tag"},

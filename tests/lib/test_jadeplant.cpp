@@ -1,7 +1,7 @@
 // Depth on real data: Middlebury Jadeplant (a potted plant 2.0-3.3 m away, quarter resolution)
 // through the project's own chain in lib/: the plant segmented by its colour, SIFT matched with
 // the stereo constraints and refined, triangulated. The median depth of the plant's points must
-// be within 1% of the ground-truth median over the same pixels (issue 7's target).
+// be within 1% of the ground-truth median over the same pixels (the accuracy target).
 #include "treestereo/data_dir.hpp"
 #include "treestereo/densify.hpp"
 #include "treestereo/depth.hpp"
@@ -65,8 +65,8 @@ TEST(Jadeplant, MedianDepthOfThePlantWithinOnePercent)
   const Silhouette plant = segment_vegetation(s.left, sp);
   ASSERT_TRUE(plant.present);
 
-  // siftmatch's defaults (euclidean, 2 px band, mutual, refine) with a depth range around the
-  // plant, as a sprayer is set up for its row
+  // lib's matcher (euclidean, 2 px band, mutual, refine; without siftmatch's two-layer test)
+  // with a depth range around the plant, as a sprayer is set up for its row
   MatchParams mp;
   const DisparityRange range = disparity_range_for_depth(g, 1800, 3600);
   mp.matcher.constraints.min_disparity = range.min;

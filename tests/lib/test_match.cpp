@@ -2,6 +2,7 @@
 #include "treestereo/features.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/middlebury.hpp"
+#include "treestereo/presets.hpp"
 #include "treestereo/stats.hpp"
 
 #include <gtest/gtest.h>
@@ -834,4 +835,42 @@ TEST(Middlebury, JadeplantCorrectRate)
       }
     }
   }
+}
+
+// siftmatch's automatic scale: the largest power of two that brings the view to 648 px or less.
+TEST(SiftmatchPreset, AutoScaleBringsTheViewTo648PxOrLess)
+{
+  EXPECT_EQ(SiftmatchPreset::auto_scale(640), 1.0);
+  EXPECT_EQ(SiftmatchPreset::auto_scale(648), 1.0);
+  EXPECT_EQ(SiftmatchPreset::auto_scale(649), 0.5);
+  EXPECT_EQ(SiftmatchPreset::auto_scale(1296), 0.5);
+  EXPECT_EQ(SiftmatchPreset::auto_scale(2592), 0.25);
+  EXPECT_EQ(SiftmatchPreset::auto_scale(4000), 0.125);
+}
+
+// The preset is siftmatch's configuration, not lib's: the upright engine, the lower contrast
+// threshold with its inset, and the two-layer test with its refinements and relocation.
+TEST(SiftmatchPreset, HoldsTheElementsDefaults)
+{
+  const MatchParams p = SiftmatchPreset::params();
+  EXPECT_EQ(p.detect.engine, SiftEngine::Upright);
+  EXPECT_EQ(p.detect.contrast_threshold, 0.02);
+  EXPECT_EQ(p.detect.mask_inset, 4);
+  EXPECT_EQ(p.matcher.method, MatchMethod::Euclidean);
+  EXPECT_EQ(p.matcher.constraints.epipolar_tolerance, 2.0);
+  EXPECT_EQ(p.refine_params.layer_tolerance, 0.5);
+  EXPECT_EQ(p.refine_params.min_zncc, 0.9);
+  EXPECT_EQ(p.refine_params.relocate, 1);
+  EXPECT_NO_THROW(check_refine_params(p.refine_params));
+
+  StereoGeometry g;
+  g.view_size = cv::Size(1296, 972);
+  g.fx = g.fy = 1100;
+  g.cx[0] = g.cx[1] = 648;
+  g.cy = 486;
+  g.baseline_mm = 50;
+  const MatchParams v = SiftmatchPreset::for_view(g, g.view_size.width);
+  EXPECT_EQ(v.detect.scale, 0.5);
+  EXPECT_NEAR(v.matcher.constraints.min_disparity, 1100.0 * 50 / 10000, 1e-9);
+  EXPECT_NEAR(v.matcher.constraints.max_disparity, 1100.0 * 50 / 500, 1e-9);
 }

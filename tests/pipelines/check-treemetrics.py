@@ -6,12 +6,12 @@ treestereo-synth wrote).
 
 Two profiles (--profile):
   jpeg640 (default), for the 640x480 JPEG sequences seq-static and seq-moving, per frame:
-    distance 1.5%: issue 7's 0.5% bias is for 1296x972; at 640x480 one pixel of disparity is
+    distance 1.5%: the 0.5% bias target is for 1296x972; at 640x480 one pixel of disparity is
       twice as much depth and JPEG blurs the texture SIFT matches on;
     height, width 6%: the 1296x972 target is 1.5%; at 640x480 the tree is ~250 px wide, one
       pixel of its silhouette is 0.4% of it, and JPEG blurs its edges: NOT the target;
-    thickness 25%: issue 7's 20% plus the JPEG margin.
-  sweep1296, for sweep-1296 (issue 7's conditions: 1296x972, trunk at 1.8-2.2 m, 5 seeds):
+    thickness 25%: the 20% target plus the JPEG margin.
+  sweep1296, for sweep-1296 (the targets' conditions: 1296x972, trunk at 1.8-2.2 m, 5 seeds):
     distance: the targets themselves over the frames: mean error (bias) <= 0.5% and standard
       deviation of the error <= 0.5 cm; and each frame within 1%;
     thickness: the target, each frame within 20%;

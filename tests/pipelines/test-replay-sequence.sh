@@ -4,7 +4,7 @@
 #   seq-static, seq-moving: 8 frames each, 640x480 JPEG, 7 fps; in seq-moving the tree drives out
 #     of the view's left border from frame 4 on. Per frame: a tree at the true distance (1.5%),
 #     size (6%; a clipped extent only as a lower bound) and thickness (25%), 1/7 s apart.
-#   sweep-1296: issue 7's conditions, 5 pairs 1296x972 JPEG, trunk at 1.8-2.2 m, seeds 1-5:
+#   sweep-1296: the accuracy targets' conditions, 5 pairs 1296x972 JPEG, trunk at 1.8-2.2 m, seeds 1-5:
 #     distance bias <= 0.5% and error std <= 0.5 cm over the frames (the targets), thickness
 #     within 20% (the target), height and width 1.5% root mean square error over the frames (the
 #     target) and within 3% per frame.

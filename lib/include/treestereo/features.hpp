@@ -68,7 +68,8 @@ struct LocatedFeatures {
 // Speed notes: SIFT starts one octave below the input (firstOctave = -1, the image is upsampled
 // 2x with linear interpolation): OpenCV 4.6's API has no switch for it (`enable_precise_upscale`
 // only exists from OpenCV 4.8) and the upright engine does the same, to find the same keypoints.
-// The upright engine costs about 44 % fewer instructions (docs/results.md, "Round 5"): no
+// The upright engine costs about 44 % fewer instructions (docs/results.md, "Upright SIFT engine
+// (2026-12-01)"): no
 // orientation histograms, one descriptor per place, none for keypoints a caller does not need
 // (locate / describe). Because of the upsampling, detecting at scale 0.5 still builds a base
 // octave at about the view's full size, but from an interpolated half-size image:

@@ -163,8 +163,8 @@ struct RefineParams {
   int search = 2;        // px around the estimate
   double min_zncc = 0.8; // the correlation peak must be at least this
   double min_zncc_drop = 0; // the peak must exceed the lowest score within +-(search + 1) px by
-                            // at least this (0 = off; siftmatch: 0.05)
-  double layer_tolerance = -1;  // px; negative = off (lib's default; siftmatch's is 0.5)
+                            // at least this (0 = off; SiftmatchPreset: 0.05)
+  double layer_tolerance = -1;  // px; negative = off (SiftmatchPreset: 0.5)
   int layer_half_window = 5;    // quadrants of 6x6 px
   int layer_search = 3;         // px
   double layer_centre_tolerance = -1; // px for the 3x3 centre; negative = layer_tolerance
@@ -186,7 +186,8 @@ std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
 // found at scale 0.25 (2592x1944 views) stands for twice as many full-resolution pixels as one
 // found at 0.5 (1296x972), and a 7x7 patch there holds half the texture: 2592x1944 pairs kept
 // 15-29 matches in dim light (light 0.7) with 7x7 and 11x11 windows and 26-42 with 13x13 and
-// 21x21, with 3 wrong of 718 (12 pairs, docs/results.md "Fourth round").
+// 21x21, with 3 wrong of 718 (12 pairs, docs/results.md "The canopy's extremes from its points
+// (2026-11-22)").
 RefineParams refine_params_for_scale(const RefineParams &params, double detect_scale);
 
 struct MatchParams {

@@ -85,7 +85,8 @@ struct MetricsParams {
   // its points are seen (with DensifyParams::edge_band sampling them). The 6th, not the first:
   // a point matched on the background beside an edge leaf lies too far out, and a handful of
   // them does not move the 6th. The chain on the synthetic orchard (bench-accuracy, 1296x972,
-  // 1.6-2.5 m, tree seeds 1-6, 159 unclipped frames; docs/results.md "Fourth round"), error
+  // 1.6-2.5 m, tree seeds 1-6, 159 unclipped frames; docs/results.md "The canopy's extremes
+  // from its points (2026-11-22)"), error
   // mean +- sd: height -1.20 +- 1.36 % -> -0.44 +- 1.32 %, width -0.75 +- 1.76 % -> -0.14 +-
   // 1.26 % (with DensifyParams::edge_band 0.04).
   int extreme_points = 6;

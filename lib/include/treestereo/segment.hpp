@@ -61,8 +61,8 @@ struct SegmentParams {
   std::optional<double> otsu_floor;
   // Pixels with R+G+B below this are background and are left out of the histogram: their
   // chromaticity is sensor noise (and an all-black frame must not produce a canopy). >= 1.
-  // 12 (was 24): shadowed leaves of the synthetic orchard at light 0.7 sit at R+G+B 12-24 and
-  // still read green; 24 cut them out (canopy IoU 0.93 instead of 0.97, see
+  // 12: shadowed leaves of the synthetic orchard at light 0.7 sit at R+G+B 12-24 and still
+  // read green; 24 would cut them out (canopy IoU 0.93 instead of 0.97, see
   // docs/elements/exgsegment.md); the real-image coverage table did not change.
   int dark_floor = 12;
   // Diameter (px) of the elliptic element of a morphological open then close; 0 = off.

@@ -1,4 +1,4 @@
-// Nozzle sections from the row map: valve commands timed for the travel (issue 23; DESIGN.md
+// Nozzle sections from the row map: valve commands timed for the travel (DESIGN.md
 // "In an orchard": section command fields section, on, rate, at_ns, position_m).
 //
 // The nozzles sit nozzle_offset_m behind the camera along the travel. A canopy slice at world
