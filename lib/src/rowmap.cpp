@@ -203,10 +203,14 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     return;
   std::vector<int> total(std::size_t(nbins * nb), 0), canopy(std::size_t(nbins * nb), 0);
   std::vector<double> min_z(std::size_t(nbins * nb), std::numeric_limits<double>::infinity());
+  std::vector<double> lo_x(std::size_t(nbins * nb), std::numeric_limits<double>::infinity());
+  std::vector<double> hi_x(std::size_t(nbins * nb), -std::numeric_limits<double>::infinity());
   for (int u = 0; u < W; ++u) {
     const double z = col_z[std::size_t(u)];
     const double X = (u - cx) / fx * z;
-    const long b = long(std::floor((X + position_mm) / bin)) - b0;
+    const double wx = X + position_mm;
+    const double half_px = 0.5 * z / fx; // a column covers wx +- half a pixel along the row
+    const long b = long(std::floor(wx / bin)) - b0;
     if (b < 0 || b >= nbins)
       continue;
     for (int v = 0; v < H; ++v) {
@@ -219,6 +223,8 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       if (mask.at<uchar>(v, u)) {
         ++canopy[c];
         min_z[c] = std::min(min_z[c], z);
+        lo_x[c] = std::min(lo_x[c], wx - half_px);
+        hi_x[c] = std::max(hi_x[c], wx + half_px);
       }
     }
   }
@@ -250,9 +256,12 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         continue;
       cell.fill = double(canopy[c]) / total[c];
       cell.present = canopy[c] > 0 && cell.fill >= params_.min_fill;
-      if (cell.present)
+      if (cell.present) {
         cell.distance_m =
             (cell_z[c].empty() ? min_z[c] : percentile(cell_z[c], 5.0)) * kMmToM;
+        cell.lo_m = std::max(lo, lo_x[c]) * kMmToM;
+        cell.hi_m = std::min(hi, hi_x[c]) * kMmToM;
+      }
     }
     bins_[b + b0] = std::move(out);
   }
@@ -409,8 +418,8 @@ cv::Mat RowMap::render(const std::vector<TreeRecord> &trees, const RowMapRenderP
       cv::putText(img, std::to_string(std::lround(m)), cv::Point(x - 4, ground_y + 18), font,
                   0.4, ink, 1, cv::LINE_AA);
     }
-    cv::putText(img, "travel (m)", cv::Point(size.width - kMarginRight - 75, ground_y + 18),
-                font, 0.4, ink, 1, cv::LINE_AA);
+    // In the left margin, on the ticks' line: clear of every tick's number.
+    cv::putText(img, "travel (m)", cv::Point(4, ground_y + 18), font, 0.4, ink, 1, cv::LINE_AA);
   }
   // The trees: extent as a bracket above the map, id above its position.
   const double map_lo_m = double(b0) * params_.bin_mm * kMmToM;

@@ -84,22 +84,35 @@ std::vector<SliceSection> sections_of(const std::vector<RowMapCell> &cells,
       s.present = c.present;
       s.fill = c.present ? c.fill : 0;
       s.width_share = c.present ? 1 : 0;
+      if (c.present) {
+        s.lo_m = c.lo_m;
+        s.hi_m = c.hi_m;
+      }
       out.push_back(s);
     }
     return out;
   }
   for (const SectionRange &r : ranges) {
     double covered = 0, fill = 0;
+    double x_lo = std::numeric_limits<double>::infinity(), x_hi = -x_lo;
     for (std::size_t k = 0; k < cells.size(); ++k) {
       const double lo = band_edges_mm[k] / 1000.0, hi = band_edges_mm[k + 1] / 1000.0;
       const double o = std::min(r.hi_m, hi) - std::max(r.lo_m, lo);
       if (o > 0 && cells[k].present) {
         covered += o;
         fill += cells[k].fill * o;
+        if (cells[k].hi_m > cells[k].lo_m) {
+          x_lo = std::min(x_lo, cells[k].lo_m);
+          x_hi = std::max(x_hi, cells[k].hi_m);
+        }
       }
     }
     SliceSection s;
     s.present = covered > 0;
+    if (s.present && x_hi > x_lo) {
+      s.lo_m = x_lo;
+      s.hi_m = x_hi;
+    }
     s.fill = s.present ? fill / covered : 0;
     s.width_share = std::min(1.0, covered / (r.hi_m - r.lo_m));
     out.push_back(s);
@@ -282,10 +295,21 @@ std::vector<SectionCommand> SprayPlanner::update(std::int64_t running_ns, double
         absent(k, frontier_, start); // bins no frame held: no canopy known there
     for (int k = 0; k < p_.n_sections; ++k) {
       const SliceSection &s = sl.sections[std::size_t(k)];
-      if (s.present)
-        present(k, start, sl.end_m, rate_of(s));
-      else
+      if (!s.present) {
         absent(k, start, sl.end_m);
+        continue;
+      }
+      // The canopy's own extent within the bin, the rest of the bin a gap.
+      double lo = start, hi = sl.end_m;
+      if (s.hi_m > s.lo_m) {
+        lo = std::clamp(s.lo_m, start, sl.end_m);
+        hi = std::clamp(s.hi_m, lo, sl.end_m);
+      }
+      if (lo > start + kEps)
+        absent(k, start, lo);
+      present(k, lo, std::max(hi, lo + kEps), rate_of(s));
+      if (hi < sl.end_m - kEps)
+        absent(k, hi, sl.end_m);
     }
     frontier_ = sl.end_m;
     have_frontier_ = true;

@@ -30,6 +30,8 @@ const int kW = 100, kH = 60;
 const double kZ = 2000, kF = 100, kCamHeight = 1.0;
 /* Start position: column centres never fall on a 50 mm bin edge (the mask and the map agree). */
 const double kP0 = 0.005;
+/* A canopy edge is known to the pixel: within half a column (10 mm) of the true one. */
+const double kHalfColumn = 0.5 * kZ / kF / 1000.0 + 1e-9;
 const GstClockTime kFrame = 100 * GST_MSECOND;
 
 using Canopy = std::vector<std::pair<double, double>>; // [start, end) along the row (m)
@@ -213,15 +215,18 @@ GST_START_TEST(test_timing_two_speeds_two_latencies)
       fail_unless(c[0].on && !c[1].on);
       fail_unless(!c[0].fallback && !c[1].fallback);
       fail_unless_equals_float(c[0].rate, 1.0);
-      fail_unless(std::abs(c[0].position_m - 2.0) < 1e-9, "on at %f", c[0].position_m);
-      fail_unless(std::abs(c[1].position_m - 3.0) < 1e-9, "off at %f", c[1].position_m);
+      fail_unless(std::abs(c[0].position_m - 2.0) <= kHalfColumn, "on at %f", c[0].position_m);
+      fail_unless(std::abs(c[1].position_m - 3.0) <= kHalfColumn, "off at %f", c[1].position_m);
+      // Each command timed exactly for its canopy slice.
       const gint64 lat = gint64(latency) * GST_MSECOND;
-      fail_unless(std::llabs(c[0].at_ns - expected_at(2.0, 1.2, speed, lat)) <= 2,
+      const gint64 on_at = expected_at(c[0].position_m, 1.2, speed, lat);
+      const gint64 off_at = expected_at(c[1].position_m, 1.2, speed, lat);
+      fail_unless(std::llabs(c[0].at_ns - on_at) <= 2,
                   "speed %f latency %u: on at %" G_GINT64_FORMAT " expected %" G_GINT64_FORMAT,
-                  speed, latency, c[0].at_ns, expected_at(2.0, 1.2, speed, lat));
-      fail_unless(std::llabs(c[1].at_ns - expected_at(3.0, 1.2, speed, lat)) <= 2,
+                  speed, latency, c[0].at_ns, on_at);
+      fail_unless(std::llabs(c[1].at_ns - off_at) <= 2,
                   "speed %f latency %u: off at %" G_GINT64_FORMAT " expected %" G_GINT64_FORMAT,
-                  speed, latency, c[1].at_ns, expected_at(3.0, 1.2, speed, lat));
+                  speed, latency, c[1].at_ns, off_at);
     }
 }
 GST_END_TEST;
@@ -233,12 +238,16 @@ GST_START_TEST(test_min_gap_and_min_canopy)
   const Canopy canopy = {{2.0, 2.5}, {2.55, 3.0}, {3.1, 3.5}, {4.0, 4.05}};
   const auto c = drive("", canopy, 1.0, 7.0);
   fail_unless_equals_int(int(c.size()), 4);
-  fail_unless(c[0].on && std::abs(c[0].position_m - 2.0) < 1e-9);
-  fail_unless(!c[1].on && std::abs(c[1].position_m - 3.0) < 1e-9, "off at %f", c[1].position_m);
-  fail_unless(c[2].on && std::abs(c[2].position_m - 3.1) < 1e-9);
-  fail_unless(!c[3].on && std::abs(c[3].position_m - 3.5) < 1e-9);
-  // The gap's closed time is its travel time: 0.1 m at 1 m/s.
-  fail_unless(std::llabs(c[2].at_ns - c[1].at_ns - gint64(100 * GST_MSECOND)) <= 2);
+  fail_unless(c[0].on && std::abs(c[0].position_m - 2.0) <= kHalfColumn);
+  fail_unless(!c[1].on && std::abs(c[1].position_m - 3.0) <= kHalfColumn, "off at %f",
+              c[1].position_m);
+  fail_unless(c[2].on && std::abs(c[2].position_m - 3.1) <= kHalfColumn);
+  fail_unless(!c[3].on && std::abs(c[3].position_m - 3.5) <= kHalfColumn);
+  // The gap's closed time is its travel time at 1 m/s.
+  const gint64 closed = gint64(std::llround((c[2].position_m - c[1].position_m) * 1e9));
+  fail_unless(std::llabs(c[2].at_ns - c[1].at_ns - closed) <= 2);
+  fail_unless(closed >= gint64(80 * GST_MSECOND), "the 10 cm gap closed %" G_GINT64_FORMAT " ns",
+              closed);
   // With min-canopy 0 the twig is sprayed too.
   fail_unless_equals_int(int(drive("min-canopy=0", canopy, 1.0, 7.0).size()), 6);
 }
@@ -264,8 +273,14 @@ GST_START_TEST(test_speed_change_halfway)
       c.push_back(x);
   harness_free(r);
   fail_unless_equals_int(int(c.size()), 2);
-  const gint64 on = gint64(std::llround((3.75 - kP0 / 2.0) * 1e9)) - 160 * GST_MSECOND;
-  const gint64 off = gint64(std::llround((4.25 - kP0 / 2.0) * 1e9)) - 160 * GST_MSECOND;
+  fail_unless(std::abs(c[0].position_m - 4.0) <= kHalfColumn, "on at %f", c[0].position_m);
+  fail_unless(std::abs(c[1].position_m - 5.0) <= kHalfColumn, "off at %f", c[1].position_m);
+  // At 2 m/s from 2 s on (position kP0 + 2 m then): slice x reaches the nozzles at
+  // 2 + (x + 1.5 - kP0 - 2) / 2 s.
+  auto when = [](double x) {
+    return gint64(std::llround((2.0 + (x - 0.5 - kP0) / 2.0) * 1e9)) - 160 * GST_MSECOND;
+  };
+  const gint64 on = when(c[0].position_m), off = when(c[1].position_m);
   fail_unless(std::llabs(c[0].at_ns - on) <= 2, "on at %" G_GINT64_FORMAT, c[0].at_ns);
   fail_unless(std::llabs(c[1].at_ns - off) <= 2, "off at %" G_GINT64_FORMAT, c[1].at_ns);
 }

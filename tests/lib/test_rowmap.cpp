@@ -3,11 +3,13 @@
 // ground while the rig drives by. Masks and points are cast exactly; the map must give the
 // cells' truth.
 #include "treestereo/rowmap.hpp"
+#include "treestereo/spray.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
 #include <gtest/gtest.h>
 
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -163,6 +165,56 @@ TEST(RowMap, CellsMatchTheConstructedRow)
     EXPECT_FALSE(map.cell(32, k).present);
     EXPECT_FALSE(map.cell(33, k).present);
   }
+}
+
+TEST(RowMap, CanopyEdgesWithinTheBins)
+{
+  // Canopies whose ends fall inside bins: 1.020-1.590 m at 2 m, 1.713-2.262 m at 2.2 m. The
+  // cells holding an end know where in the bin the canopy stops (a pixel is 1.8-2 mm there).
+  const std::vector<Wall> walls = {{1020, 1590, 500, 1450, 2000}, {1713, 2262, 700, 1300, 2200}};
+  const StereoGeometry g = camera();
+  RowMap map;
+  for (double pos = 0; pos <= 4000; pos += 100) {
+    const View v = cast(g, walls, pos);
+    map.add_frame(v.mask, v.points, g, level_ground(), pos);
+  }
+  const double px = 2.5e-3; // m
+  for (int k = 1; k <= 2; ++k) {
+    SCOPED_TRACE("band " + std::to_string(k));
+    EXPECT_NEAR(map.cell(20, k).lo_m, 1.020, px);  // bin 1.000-1.050
+    EXPECT_NEAR(map.cell(20, k).hi_m, 1.050, px);
+    EXPECT_NEAR(map.cell(31, k).lo_m, 1.550, px);  // bin 1.550-1.600
+    EXPECT_NEAR(map.cell(31, k).hi_m, 1.590, px);
+    EXPECT_NEAR(map.cell(34, k).lo_m, 1.713, px);
+    EXPECT_NEAR(map.cell(45, k).hi_m, 2.262, px);
+    EXPECT_NEAR(map.cell(25, k).lo_m, 1.250, px); // inside: the whole bin
+    EXPECT_NEAR(map.cell(25, k).hi_m, 1.300, px);
+  }
+
+  // The sprayer switches at those edges, not at the bins': the 123 mm gap closes the valve
+  // from 1.590 to 1.713 m.
+  SprayParams sp;
+  sp.valve_latency_ns = 0;
+  SprayPlanner planner(sp);
+  long next = LONG_MIN;
+  std::vector<SectionCommand> cmds;
+  for (double pos = 0; pos <= 4000; pos += 100) {
+    const auto got = planner.update(std::int64_t(pos * 1e6), pos / 1000.0,
+                                    take_final_slices(map, pos, next, {}));
+    cmds.insert(cmds.end(), got.begin(), got.end());
+  }
+  const auto rest = planner.finish();
+  cmds.insert(cmds.end(), rest.begin(), rest.end());
+  std::vector<double> on, off;
+  for (const SectionCommand &c : cmds)
+    if (c.section == 1)
+      (c.on ? on : off).push_back(c.position_m);
+  ASSERT_EQ(on.size(), 2u);
+  ASSERT_EQ(off.size(), 2u);
+  EXPECT_NEAR(on[0], 1.020, px);
+  EXPECT_NEAR(off[0], 1.590, px);
+  EXPECT_NEAR(on[1], 1.713, px);
+  EXPECT_NEAR(off[1], 2.262, px);
 }
 
 TEST(RowMap, GapShowsAtFasterTravelToo)

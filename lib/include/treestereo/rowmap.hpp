@@ -18,6 +18,7 @@
 // point. A cell (bin, band) of that frame:
 //  - fill: the share of the cell's pixels (those the view has of it) that are canopy;
 //  - present: fill >= min_fill;
+//  - lo_m / hi_m: the world x of its leftmost and rightmost canopy pixel columns;
 //  - distance_m: the near face, the 5th percentile of the depths of the points in the cell, or,
 //    without points, the smallest column depth of its canopy pixels.
 // Each bin (all bands) is taken from the frame that sees the bin's centre nearest the image
@@ -64,6 +65,9 @@ struct RowMapCell {
   bool present = false;  // canopy in it (fill >= min_fill)
   double distance_m = 0; // near-face depth, when present
   double fill = 0;       // share of the cell covered by canopy (0..1)
+  // Where along the row its canopy pixels lie (world x, m), when present: a sprayer's section
+  // switches at the canopy's edge, not at the bin's.
+  double lo_m = 0, hi_m = 0;
 };
 
 // `path` with its extension (after the last dot of its last component, if any) replaced by

@@ -14,6 +14,9 @@
 //
 // Per section, runs along the row: a gap shorter than min_gap_m between canopy stays sprayed;
 // canopy (gaps closed) shorter than min_canopy_m is not sprayed. Missing bins count as gaps.
+// Within a bin the canopy runs from its cells' leftmost to their rightmost canopy pixel
+// (SliceSection::lo_m / hi_m): a valve switches at the canopy's edge, not at the bin's, so the
+// bin's length (50 mm) does not add to the switch's error.
 //
 // Fail-safe: without data for hold_time_ns the last state is kept; then every section goes to
 // the fallback state with one command each (Fallback::Hold: none); the next data resumes control.
@@ -62,6 +65,9 @@ struct SliceSection {
   bool present = false;
   double fill = 0;        // mean fill of the present cells it overlaps (0..1)
   double width_share = 0; // share of the section's height covered by present cells (0..1)
+  // Where along the row its canopy lies within the bin (world x, m; lo_m < hi_m), when present:
+  // the cells' RowMapCell::lo_m / hi_m. Both 0: unknown, the whole bin.
+  double lo_m = 0, hi_m = 0;
 };
 
 // A travel bin newly final in the map: its world extent along the row and each section.
