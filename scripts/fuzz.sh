@@ -3,7 +3,7 @@
 # each for N seconds (default 60) starting from the corpus in tests/fuzz/corpus/<target>/.
 # New inputs the fuzzer finds go to build-fuzz/corpus/<target>/ (not into the repository);
 # a crash, leak or UB stops the run, leaves crash-* / leak-* in build-fuzz/ and fails.
-#   scripts/fuzz.sh [seconds] [target...]      targets: calibration messages (default both)
+#   scripts/fuzz.sh [seconds] [target...]      targets: calibration messages sections (default all)
 #   TREESTEREO_FUZZ_BUILD_DIR  build directory (default build-fuzz)
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -11,7 +11,7 @@ root=$PWD
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(calibration messages)
+[ ${#targets[@]} -eq 0 ] && targets=(calibration messages sections)
 build=${TREESTEREO_FUZZ_BUILD_DIR:-build-fuzz}
 
 bash scripts/deps.sh || exit 1

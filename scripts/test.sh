@@ -75,7 +75,7 @@ if [ $quick -eq 0 ]; then
   bash scripts/test-tsan.sh
   count_status $? "ThreadSanitizer stress test"
 
-  for target in calibration messages; do
+  for target in calibration messages sections; do
     stage "4/5 fuzzing $target for ${TREESTEREO_FUZZ_SECONDS:-60} s"
     bash scripts/fuzz.sh "${TREESTEREO_FUZZ_SECONDS:-60}" "$target"
     count_status $? "fuzz-$target"
