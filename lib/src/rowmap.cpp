@@ -26,6 +26,11 @@ constexpr double kDeg = 3.14159265358979323846 / 180.0;
 // Strips without points take the depth of the nearest strip with points within this many
 // strips; farther out, the canopy's median depth.
 constexpr int kStripReach = 6;
+// Rows of a depth block: a strip's points are split into blocks of this many strips' widths
+// down the view (see add_frame).
+constexpr int kBlockStrips = 4;
+// Points a block needs to speak for its pixels' depth.
+constexpr std::size_t kBlockMinPoints = 3;
 
 void require(bool ok, const char *field, const char *range)
 {
@@ -150,7 +155,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   // The canopy's points and the depth of each strip of columns.
   struct Pt {
     double x, z, h;
-    int u;
+    int u, v;
   };
   std::vector<Pt> pts;
   for (const PixelPoint &q : points) {
@@ -161,7 +166,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     if (u < 0 || v < 0 || u >= W || v >= H || !on_mask(mask, u, v))
       continue;
     const cv::Point3d P(q.p.x, q.p.y, q.p.z);
-    pts.push_back({P.x, P.z, ground.height_of(P), u});
+    pts.push_back({P.x, P.z, ground.height_of(P), u, v});
   }
   if (pts.empty())
     return; // no depth: where the canopy-free view lies along the row is unknown
@@ -193,6 +198,43 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       col_z[std::size_t(u)] = z;
   }
 
+  // The depth of each block of a strip: the crown's top and bottom lie deeper than its front at
+  // the camera's height, and placed at the strip's depth a pixel above the camera would read
+  // too low (and one below too high): the outer bands would lose canopy to the middle ones.
+  // A block with kBlockMinPoints points around it takes their median, else the nearest such
+  // block beside it (same rows, within kStripReach strips), else the strip's depth.
+  const int block_rows = params_.strip_px * kBlockStrips;
+  const int B = (H + block_rows - 1) / block_rows;
+  std::vector<std::vector<double>> block_pts(static_cast<std::size_t>(S) * std::size_t(B));
+  for (const Pt &p : pts)
+    block_pts[std::size_t(p.u / params_.strip_px) * std::size_t(B) + std::size_t(p.v / block_rows)]
+        .push_back(p.z);
+  // A block's own depth: the points of its rows in its strip and the strips beside it (3 strips
+  // by 4 strips' widths: a handful of points at stereodepth's grid spacing).
+  std::vector<double> own_z(block_pts.size(), -1);
+  std::vector<double> near;
+  for (int s = 0; s < S; ++s)
+    for (int r = 0; r < B; ++r) {
+      near.clear();
+      for (int t = std::max(0, s - 1); t <= std::min(S - 1, s + 1); ++t) {
+        const auto &q = block_pts[std::size_t(t) * std::size_t(B) + std::size_t(r)];
+        near.insert(near.end(), q.begin(), q.end());
+      }
+      if (near.size() >= kBlockMinPoints)
+        own_z[std::size_t(s) * std::size_t(B) + std::size_t(r)] = median(near);
+    }
+  std::vector<double> block_z = own_z;
+  for (int s = 0; s < S; ++s)
+    for (int r = 0; r < B; ++r) {
+      double &z = block_z[std::size_t(s) * std::size_t(B) + std::size_t(r)];
+      for (int d = 1; z < 0 && d <= kStripReach; ++d) {
+        if (s - d >= 0 && own_z[std::size_t(s - d) * std::size_t(B) + std::size_t(r)] > 0)
+          z = own_z[std::size_t(s - d) * std::size_t(B) + std::size_t(r)];
+        else if (s + d < S && own_z[std::size_t(s + d) * std::size_t(B) + std::size_t(r)] > 0)
+          z = own_z[std::size_t(s + d) * std::size_t(B) + std::size_t(r)];
+      }
+    }
+
   // Every pixel placed on the canopy's surface: counts per (bin, band).
   const double bin = params_.bin_mm;
   const double view_lo = (-0.5 - cx) / fx * col_z.front() + position_mm;
@@ -201,31 +243,44 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   const long nbins = b1 - b0 + 1;
   if (nbins <= 0 || nbins > 1000000)
     return;
-  std::vector<int> total(std::size_t(nbins * nb), 0), canopy(std::size_t(nbins * nb), 0);
+  std::vector<int> total(std::size_t(nbins * nb), 0);
+  std::vector<double> canopy(std::size_t(nbins * nb), 0.0);
   std::vector<double> min_z(std::size_t(nbins * nb), std::numeric_limits<double>::infinity());
   std::vector<double> lo_x(std::size_t(nbins * nb), std::numeric_limits<double>::infinity());
   std::vector<double> hi_x(std::size_t(nbins * nb), -std::numeric_limits<double>::infinity());
-  for (int u = 0; u < W; ++u) {
-    const double z = col_z[std::size_t(u)];
+  // The cells' pixels (total) are counted at the strip's depth: one depth down each column, so
+  // a column's rows tile the bands without overlap. Canopy pixels are placed at their block's
+  // depth, where the canopy is, each weighing the area it covers there in pixels at the strip's
+  // depth, (z / z_strip)^2.
+  auto cell_of = [&](int u, int v, double z, double &wx) {
     const double X = (u - cx) / fx * z;
-    const double wx = X + position_mm;
-    const double half_px = 0.5 * z / fx; // a column covers wx +- half a pixel along the row
+    wx = X + position_mm;
     const long b = long(std::floor(wx / bin)) - b0;
     if (b < 0 || b >= nbins)
-      continue;
+      return -1L;
+    const int k = band_of(ground.height_of(cv::Point3d(X, (v - cy) / fy * z, z)));
+    return k < 0 ? -1L : b * nb + k;
+  };
+  for (int u = 0; u < W; ++u) {
+    const double z_col = col_z[std::size_t(u)];
+    const std::size_t strip = std::size_t(u / params_.strip_px) * std::size_t(B);
     for (int v = 0; v < H; ++v) {
-      const double Y = (v - cy) / fy * z;
-      const int k = band_of(ground.height_of(cv::Point3d(X, Y, z)));
-      if (k < 0)
+      double wx = 0;
+      const long c_all = cell_of(u, v, z_col, wx);
+      if (c_all >= 0)
+        ++total[std::size_t(c_all)];
+      if (!mask.at<uchar>(v, u))
         continue;
-      const std::size_t c = std::size_t(b * nb + k);
-      ++total[c];
-      if (mask.at<uchar>(v, u)) {
-        ++canopy[c];
-        min_z[c] = std::min(min_z[c], z);
-        lo_x[c] = std::min(lo_x[c], wx - half_px);
-        hi_x[c] = std::max(hi_x[c], wx + half_px);
-      }
+      const double bz = block_z[strip + std::size_t(v / block_rows)];
+      const double z = bz > 0 ? bz : z_col;
+      const long c = cell_of(u, v, z, wx);
+      if (c < 0)
+        continue;
+      const double half_px = 0.5 * z / fx; // a column covers wx +- half a pixel along the row
+      canopy[std::size_t(c)] += (z / z_col) * (z / z_col);
+      min_z[std::size_t(c)] = std::min(min_z[std::size_t(c)], z);
+      lo_x[std::size_t(c)] = std::min(lo_x[std::size_t(c)], wx - half_px);
+      hi_x[std::size_t(c)] = std::max(hi_x[std::size_t(c)], wx + half_px);
     }
   }
   std::vector<std::vector<double>> cell_z(std::size_t(nbins * nb));
@@ -254,7 +309,8 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       cell.seen = total[c] > 0;
       if (!cell.seen)
         continue;
-      cell.fill = double(canopy[c]) / total[c];
+      // Canopy placed at its own depth may outnumber the cell's pixels at the strip's.
+      cell.fill = std::min(1.0, canopy[c] / total[c]);
       cell.present = canopy[c] > 0 && cell.fill >= params_.min_fill;
       if (cell.present) {
         cell.distance_m =

@@ -217,6 +217,27 @@ TEST(RowMap, CanopyEdgesWithinTheBins)
   EXPECT_NEAR(off[1], 2.262, px);
 }
 
+TEST(RowMap, ACrownsTopIsPlacedAtItsOwnDepth)
+{
+  // A crown's front at 2 m from 0.5 to 1.0 m above the ground, its top 0.6 m further back, 1.3
+  // to 1.55 m: at the front's depth the top's pixels would read 1.22-1.41 m, a third of them in
+  // band 2 (1.0-1.3 m), which holds no canopy.
+  const std::vector<Wall> walls = {{1000, 1600, 500, 1000, 2000}, {1000, 1600, 1300, 1550, 2600}};
+  const StereoGeometry g = camera();
+  RowMap map;
+  for (double pos = 0; pos <= 2500; pos += 100) {
+    const View v = cast(g, walls, pos);
+    map.add_frame(v.mask, v.points, g, level_ground(), pos);
+  }
+  for (long b = 22; b <= 29; ++b) {
+    SCOPED_TRACE("bin " + std::to_string(b));
+    EXPECT_NEAR(map.cell(b, 0).fill, 0.2 / 0.3, 0.03); // 0.4-0.7 m: 0.5-0.7 is canopy
+    EXPECT_LT(map.cell(b, 2).fill, 0.03);               // 1.0-1.3 m: none
+    EXPECT_NEAR(map.cell(b, 3).fill, 0.25 / 0.3, 0.03);
+    EXPECT_NEAR(map.cell(b, 3).distance_m, 2.6, 0.001);
+  }
+}
+
 TEST(RowMap, GapShowsAtFasterTravelToo)
 {
   // 2 m/s at 7 frames/s: 286 mm a frame.

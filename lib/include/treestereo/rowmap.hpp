@@ -12,9 +12,12 @@
 // Per frame (add_frame): the canopy mask of the left rectified view, the canopy's 3D points with
 // their pixels, the geometry, the ground plane (select_canopy()'s, or one from the rig's camera
 // height and pitch: rig_ground()) and the rig's position along the row. Each pixel is placed at
-// the canopy's depth in its column: the median depth of the points in a strip of columns around
-// it (strips without points take the nearest strip's, columns far from any point the canopy's
-// median depth). Its world x is X + position, its height the ground plane's height of the 3D
+// the canopy's depth around it: the median depth of the points in its block (strip_px columns by
+// 4 * strip_px rows) when the block holds 3 or more, else of the points in its strip of columns
+// (strips without points take the nearest strip's, columns far from any point the canopy's
+// median depth). The crown's top and bottom lie deeper than its front, so a strip's one depth
+// would place the top too low and the bottom too high. Its world x is X + position, its height
+// the ground plane's height of the 3D
 // point. A cell (bin, band) of that frame:
 //  - fill: the share of the cell's pixels (those the view has of it) that are canopy;
 //  - present: fill >= min_fill;
