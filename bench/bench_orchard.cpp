@@ -720,6 +720,11 @@ void score_spray(DrivebyRun &run, const SprayTruth &truth,
       true_len += clip(r.first, r.second);
     if (true_len > 0)
       run.length_err.push_back(100 * (chain_len - true_len) / true_len);
+    std::fprintf(stderr, "driveby seed=%llu: section %zu sprayed %.0f mm (truth %.0f mm, %+.1f %%) "
+                 "in %zu switches (truth %zu stretches)\n",
+                 (unsigned long long)run.c.seed, b, chain_len, true_len,
+                 true_len > 0 ? 100 * (chain_len - true_len) / true_len : 0.0, sw.size(),
+                 iv.size());
     // Gaps of 10 cm and more between sprayed stretches: the valve is closed at the gap's middle.
     for (std::size_t i = 0; i + 1 < iv.size(); ++i) {
       const double g0 = iv[i].second, g1 = iv[i + 1].first, mid = 0.5 * (g0 + g1);
