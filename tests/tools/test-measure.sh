@@ -128,8 +128,9 @@ for r in complete:
     assert abs(r["position_m"] - centre) <= 0.05 + 0.03 * abs(centre), f"tree {r['id']} at {r['position_m']:.3f} m, truth {centre:.3f}"
     assert abs(r["height_m"] - t["height_m"]) <= 0.08 * t["height_m"], f"tree {r['id']} height {r['height_m']:.3f}, truth {t['height_m']:.3f}"
 rows = list(csv.DictReader(open(sys.argv[4])))
-assert rows and list(rows[0].keys()) == ["position_m", "band", "present", "distance_m", "fill"], "row map CSV header"
-assert any(r["present"] == "1" for r in rows) and any(r["present"] == "0" for r in rows), "row map without canopy or without gaps"
+assert rows and list(rows[0].keys()) == ["position_m", "band", "present", "distance_m", "fill", "seen"], "row map CSV header"
+assert any(r["present"] == "1" for r in rows) and any(r["present"] == "0" and r["seen"] == "1" for r in rows), "row map without canopy or without gaps"
+assert all(r["seen"] == "1" for r in rows if r["present"] == "1"), "a cell with canopy that no frame saw"
 # section commands: DESIGN.md's fields; per section on and off alternate, in time order; each
 # opening is for canopy of a tree record (10 cm: two map bins)
 commands = [json.loads(l) for l in open(sys.argv[5]) if l.strip()]
