@@ -1,5 +1,7 @@
 #include "common.hpp"
 
+#include "treestereo/calibration.hpp"
+#include "treestereo/errors.hpp"
 #include "treestereo/features.hpp"
 
 #include <algorithm>
@@ -514,10 +516,105 @@ void post_element_message(GstElement *element, GstStructure *s)
   gst_element_post_message(element, gst_message_new_element(GST_OBJECT(element), s));
 }
 
-void report_exception(GstElement *element, const std::exception &e)
+const NeededMeta kGeometryMeta{"stereo geometry", "geometry meta", "stereorectify",
+                               "GstTreeStereoGeometryMeta"};
+const NeededMeta kVegetationMeta{"vegetation mask", "vegetation meta", "exgsegment",
+                                 "GstTreeStereoVegetationMeta"};
+const NeededMeta kMatchesMeta{"stereo matches", "matches meta", "siftmatch",
+                              "GstTreeStereoMatchesMeta"};
+const NeededMeta kPointsMeta{"3D points", "points meta", "stereodepth", "GstTreeStereoPointsMeta"};
+const NeededMeta kMetricsMeta{"rig position", "metrics meta", "treemetrics",
+                              "GstTreeStereoMetricsMeta"};
+
+/* The element's factory name ("siftmatch"), or its object name without a factory. */
+static std::string element_kind(GstElement *element)
+{
+  GstElementFactory *f = gst_element_get_factory(element);
+  if (f)
+    return GST_OBJECT_NAME(f);
+  return GST_OBJECT_NAME(element);
+}
+
+static void post(GstElement *element, GstMessageType type, const ErrorCode &c,
+                 const std::string &message, const std::string &debug)
 {
   ensure_debug_category();
-  GST_ELEMENT_ERROR(element, STREAM, FAILED, ("%s", e.what()), ("%s", e.what()));
+  gst_element_message_full(element, type, c.domain, c.code, g_strdup(message.c_str()),
+                           debug.empty() ? nullptr : g_strdup(debug.c_str()), __FILE__,
+                           GST_FUNCTION, __LINE__);
+}
+
+void post_missing_meta(GstElement *element, GstMessageType type, GstBuffer *buf,
+                       const NeededMeta &need, const char *who, const char *then)
+{
+  const std::string by = who ? who : element_kind(element);
+  gchar *debug = g_strdup_printf("buffer %" GST_PTR_FORMAT " has no %s", buf, need.api);
+  post(element, type, {GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED},
+       std::string("No ") + need.what + " on the buffer: " + by + " needs the " + need.meta +
+           " of " + need.upstream + " upstream" + (then ? then : "."),
+       debug);
+  g_free(debug);
+}
+
+static FileAccess access_of(const std::exception &e)
+{
+  if (const auto *c = dynamic_cast<const CalibrationError *>(&e))
+    return c->access();
+  if (const auto *f = dynamic_cast<const FileError *>(&e))
+    return f->access();
+  return FileAccess::None;
+}
+
+ErrorCode error_code_of(const std::exception &e)
+{
+  switch (access_of(e)) {
+  case FileAccess::Read: return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_READ};
+  case FileAccess::Write: return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_WRITE};
+  case FileAccess::None: break;
+  }
+  if (dynamic_cast<const BadSettings *>(&e))
+    return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS};
+  return {GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED}; // BadInput, and faults of our own
+}
+
+std::string error_advice(GstElement *element, const std::exception &e)
+{
+  const std::string name = element_kind(element);
+  if (const auto *c = dynamic_cast<const CalibrationError *>(&e)) {
+    switch (c->access()) {
+    case FileAccess::Read:
+      return "Could not read the calibration \"" + c->file() +
+             "\": check the path in the calibration property.";
+    case FileAccess::Write:
+      return "Could not write the calibration to \"" + c->file() +
+             "\": check that its folder exists and is writable.";
+    case FileAccess::None:
+      return "The calibration \"" + c->file() + "\" cannot be used: give " + name +
+             " an OpenCV YAML/XML calibration (M1 D1 M2 D2 R T) or a ROS pair "
+             "'left.yaml;right.yaml'.";
+    }
+  }
+  if (const auto *f = dynamic_cast<const FileError *>(&e))
+    return f->access() == FileAccess::Write
+               ? "Could not write \"" + f->path() +
+                     "\": check that its folder exists, is writable and has room."
+               : "Could not read \"" + f->path() + "\": check that it exists and is readable.";
+  if (dynamic_cast<const BadSettings *>(&e))
+    return "The settings of " + name +
+           " cannot be used: change the property the debug detail names.";
+  if (dynamic_cast<const BadInput *>(&e))
+    return name + " cannot use what arrived from upstream: check the elements before it.";
+  return name + " stopped on an internal error; the debug detail has the cause.";
+}
+
+void report_exception(GstElement *element, const std::exception &e, const std::string &message)
+{
+  const auto *te = dynamic_cast<const Error *>(&e);
+  if (message.empty() && te && !te->detail().empty())
+    post(element, GST_MESSAGE_ERROR, error_code_of(e), e.what(), te->detail());
+  else
+    post(element, GST_MESSAGE_ERROR, error_code_of(e),
+         message.empty() ? error_advice(element, e) : message, e.what());
 }
 
 std::vector<StereoMatch> matches_from_meta(const GstTreeStereoMatchesMeta *meta)

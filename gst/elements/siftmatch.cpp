@@ -254,13 +254,15 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   key.max_disparity = s.max_disparity;
   if (s.min_disparity < 0 || s.max_disparity < 0) {
     if (!g.valid())
-      throw std::runtime_error("siftmatch: the stereo geometry meta has no focal length or "
-                               "baseline, so no disparity range can be derived from "
-                               "min-depth/max-depth; set min-disparity and max-disparity");
+      throw BadInput("siftmatch: the stereo geometry meta has no focal length or baseline, so "
+                     "no disparity range can be derived from min-depth/max-depth; set "
+                     "min-disparity and max-disparity");
     if (!(s.max_depth > s.min_depth))
-      throw std::runtime_error("siftmatch: max-depth (" + std::to_string(s.max_depth) +
-                               " mm) must be above min-depth (" + std::to_string(s.min_depth) +
-                               " mm)");
+      throw BadSettings("siftmatch's max-depth must be above its min-depth: raise max-depth or "
+                        "lower min-depth.",
+                        "siftmatch: max-depth (" + std::to_string(s.max_depth) +
+                            " mm) must be above min-depth (" + std::to_string(s.min_depth) +
+                            " mm)");
     const DisparityRange r = disparity_range_for_depth(g, s.min_depth, s.max_depth);
     if (s.min_disparity < 0)
       key.min_disparity = r.min;
@@ -268,10 +270,12 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
       key.max_disparity = r.max;
   }
   if (key.min_disparity > key.max_disparity)
-    throw std::runtime_error("siftmatch: the disparity range is empty: min " +
-                             std::to_string(key.min_disparity) + " px > max " +
-                             std::to_string(key.max_disparity) +
-                             " px; check min-disparity/max-disparity or min-depth/max-depth");
+    throw BadSettings("siftmatch's disparity range is empty: set min-disparity below "
+                      "max-disparity, or min-depth and max-depth that leave a range.",
+                      "siftmatch: the disparity range is empty: min " +
+                          std::to_string(key.min_disparity) + " px > max " +
+                          std::to_string(key.max_disparity) +
+                          " px; check min-disparity/max-disparity or min-depth/max-depth");
   key.scale = resolve_scale(s.scale, g.view_size.width);
   if (st->matcher && st->key == key)
     return *st->matcher;
@@ -375,10 +379,10 @@ static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereo
   const int frame_w = GST_VIDEO_INFO_WIDTH(&filter->in_info);
   const int frame_h = GST_VIDEO_INFO_HEIGHT(&filter->in_info);
   if (int(gm->view_width) * 2 != frame_w || int(gm->view_height) != frame_h)
-    throw std::runtime_error("siftmatch: the stereo geometry meta is for two " +
-                             std::to_string(gm->view_width) + "x" +
-                             std::to_string(gm->view_height) + " views but the frame is " +
-                             std::to_string(frame_w) + "x" + std::to_string(frame_h));
+    throw BadInput("siftmatch: the stereo geometry meta is for two " +
+                   std::to_string(gm->view_width) + "x" + std::to_string(gm->view_height) +
+                   " views but the frame is " + std::to_string(frame_w) + "x" +
+                   std::to_string(frame_h));
   const StereoGeometry geometry = treestereo::gst::geometry_from_meta(gm);
   const StereoMatcher &matcher = matcher_for(self, s, geometry);
 
@@ -399,9 +403,8 @@ static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereo
       GST_DEBUG_OBJECT(self, "no vegetation meta on the buffers: searching the whole views");
     }
     if (veg && veg->n_views != 2)
-      throw std::runtime_error("siftmatch: the vegetation meta holds " +
-                               std::to_string(veg->n_views) +
-                               " view(s); a side-by-side stereo frame needs 2");
+      throw BadInput("siftmatch: the vegetation meta holds " + std::to_string(veg->n_views) +
+                     " view(s); a side-by-side stereo frame needs 2");
     std::unique_ptr<ViewMask> masks[2];
     if (veg)
       for (int v = 0; v < 2; v++)
@@ -431,10 +434,8 @@ static GstFlowReturn gst_sift_match_transform_ip(GstBaseTransform *trans, GstBuf
   const Settings s = snapshot(self);
   const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
   if (!gm) {
-    GST_ELEMENT_ERROR(self, STREAM, FAILED,
-                      ("No stereo geometry on the buffer: siftmatch needs the geometry meta of "
-                       "stereorectify upstream."),
-                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoGeometryMeta", buf));
+    treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
+                                       treestereo::gst::kGeometryMeta);
     return GST_FLOW_ERROR;
   }
   GstTreeStereoMatchStats stats{};

@@ -324,7 +324,7 @@ static std::vector<StereoMatch> grid_matches(GstStereoDepth *self, GstBuffer *bu
   }
   treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
   if (!frame.ok())
-    throw std::runtime_error("could not map the frame for densification");
+    throw BadInput("could not map the frame for densification: it is smaller than its caps say");
   const cv::Mat mat = frame.mat();
   DensifyParams p = s.grid;
   p.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
@@ -368,7 +368,7 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
   }
   treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
   if (!frame.ok())
-    throw std::runtime_error("could not map the frame for the 3D canopy");
+    throw BadInput("could not map the frame for the 3D canopy: it is smaller than its caps say");
   const cv::Mat mat = frame.mat();
   p.grid.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
   const gint64 t0 = g_get_monotonic_time();
@@ -466,10 +466,14 @@ static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g,
 {
   State *st = self->state;
   if (!st->info_set)
-    throw std::runtime_error("mode=dense: no caps negotiated before the first buffer");
+    throw BadInput("stereodepth mode=dense got a buffer before its caps: the element upstream "
+                   "must send caps first.",
+                   "mode=dense: no caps negotiated before the first buffer");
   if (treestereo::gst::n_views_of(&st->info) != 2)
-    throw std::runtime_error("mode=dense needs side-by-side stereo frames "
-                             "(multiview-mode=side-by-side, as stereorectify produces)");
+    throw BadInput("stereodepth mode=dense needs side-by-side stereo frames "
+                   "(multiview-mode=side-by-side, as stereorectify produces): put stereorectify "
+                   "upstream, or use mode=sparse.",
+                   "mode=dense on a stream with one view per frame");
   cv::Rect box(cv::Point(0, 0), g.view_size);
   const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
   const GstTreeStereoVegetationView *lv = veg ? &veg->views[LEFT] : nullptr;
@@ -480,7 +484,7 @@ static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g,
   treestereo::gst::MappedSilhouette sil(lv); // no vegetation meta: no mask
   treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
   if (!frame.ok())
-    throw std::runtime_error("could not map the frame for dense matching");
+    throw BadInput("could not map the frame for dense matching: it is smaller than its caps say");
   const treestereo::gst::PixelLayout layout =
       treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info));
   const cv::Mat mat = frame.mat();
@@ -544,18 +548,15 @@ static GstFlowReturn gst_stereo_depth_transform_ip(GstBaseTransform *trans, GstB
   const Settings s = snapshot(self);
   const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
   if (!gm) {
-    GST_ELEMENT_ERROR(self, STREAM, FAILED,
-                      ("No stereo geometry on the buffer: stereodepth needs the geometry meta "
-                       "of stereorectify upstream."),
-                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoGeometryMeta", buf));
+    treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
+                                       treestereo::gst::kGeometryMeta);
     return GST_FLOW_ERROR;
   }
   const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
   if (s.mode == GST_STEREO_DEPTH_MODE_SPARSE && !mm) {
-    GST_ELEMENT_ERROR(self, STREAM, FAILED,
-                      ("No stereo matches on the buffer: stereodepth mode=sparse needs the "
-                       "matches meta of siftmatch upstream (or use mode=dense)."),
-                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoMatchesMeta", buf));
+    treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
+                                       treestereo::gst::kMatchesMeta, "stereodepth mode=sparse",
+                                       " (or use mode=dense).");
     return GST_FLOW_ERROR;
   }
   if (s.mode == GST_STEREO_DEPTH_MODE_SPARSE && s.densify &&
