@@ -1,7 +1,7 @@
 #include "treestereo/metrics.hpp"
 
-#include "treestereo/errors.hpp"
 #include "treestereo/canopy.hpp"
+#include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/imgproc.hpp>
