@@ -568,9 +568,12 @@ static FileAccess access_of(const std::exception &e)
 ErrorCode error_code_of(const std::exception &e)
 {
   switch (access_of(e)) {
-  case FileAccess::Read: return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_READ};
-  case FileAccess::Write: return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_WRITE};
-  case FileAccess::None: break;
+  case FileAccess::Read:
+    return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_READ};
+  case FileAccess::Write:
+    return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_WRITE};
+  case FileAccess::None:
+    break;
   }
   if (dynamic_cast<const BadSettings *>(&e))
     return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS};
@@ -627,6 +630,16 @@ std::vector<StereoMatch> matches_from_meta(const GstTreeStereoMatchesMeta *meta)
   return out;
 }
 
+std::vector<GstTreeStereoMatch> to_gst_matches(const std::vector<StereoMatch> &matches)
+{
+  std::vector<GstTreeStereoMatch> out(matches.size());
+  for (std::size_t i = 0; i < matches.size(); i++) {
+    const StereoMatch &m = matches[i];
+    out[i] = GstTreeStereoMatch{m.xl, m.yl, m.xr, m.yr, m.score};
+  }
+  return out;
+}
+
 std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &points)
 {
   std::vector<GstTreeStereoPoint> out(points.size());
@@ -634,6 +647,81 @@ std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &points)
     out[i] = {points[i].x, points[i].y, points[i].z, points[i].match_index,
               points[i].valid ? TRUE : FALSE};
   return out;
+}
+
+std::vector<Point3> points_from_meta(const GstTreeStereoPointsMeta *meta)
+{
+  std::vector<Point3> pts(meta->n_points);
+  for (guint i = 0; i < meta->n_points; i++) {
+    const GstTreeStereoPoint &p = meta->points[i];
+    pts[i].x = p.x;
+    pts[i].y = p.y;
+    pts[i].z = p.z;
+    pts[i].match_index = p.match_index;
+    pts[i].valid = p.valid != FALSE;
+  }
+  return pts;
+}
+
+GstTreeStereoMatchMethod match_method_to_gst(MatchMethod m)
+{
+  return m == MatchMethod::CosineNorm ? GST_TREE_STEREO_MATCH_COSINE_NORM
+                                      : GST_TREE_STEREO_MATCH_EUCLIDEAN;
+}
+
+MatchMethod match_method_from_gst(GstTreeStereoMatchMethod m)
+{
+  return m == GST_TREE_STEREO_MATCH_COSINE_NORM ? MatchMethod::CosineNorm : MatchMethod::Euclidean;
+}
+
+void match_stats_to_gst(const MatchStats &st, GstTreeStereoMatchMethod method, double total_ms,
+                        GstTreeStereoMatchStats *out)
+{
+  out->method = method;
+  out->keypoints_left = guint(st.keypoints[LEFT]);
+  out->keypoints_right = guint(st.keypoints[RIGHT]);
+  out->matches = guint(st.matches);
+  out->candidates_tested = guint(st.candidates_tested);
+  out->rejected_ratio = guint(st.rejected_ratio);
+  out->rejected_epipolar = guint(st.rejected_epipolar);
+  out->rejected_disparity = guint(st.rejected_disparity);
+  out->rejected_mutual = guint(st.rejected_mutual);
+  out->rejected_refine = guint(st.rejected_refine);
+  out->detect_ms = st.detect_ms;
+  out->match_ms = st.match_ms;
+  out->refine_ms = st.refine_ms;
+  out->total_ms = total_ms;
+}
+
+void depth_stats_to_gst(const DepthStats &s, GstTreeStereoDepthStats *out)
+{
+  out->n_points = guint(s.n_points);
+  out->n_valid = guint(s.n_valid);
+  out->dropped_disparity = guint(s.dropped_disparity);
+  out->dropped_range = guint(s.dropped_range);
+  out->dropped_outlier = guint(s.dropped_outlier);
+  out->median_z_mm = s.median_mm;
+  out->mad_z_mm = s.mad_mm;
+  out->p05_z_mm = s.p05_mm;
+  out->p95_z_mm = s.p95_mm;
+  out->accept_lo_mm = s.accept_lo_mm;
+  out->accept_hi_mm = s.accept_hi_mm;
+  out->dropped_zone = guint(s.dropped_zone);
+}
+
+GstTreeStereoVegetationIndex veg_index_to_gst(VegIndex index)
+{
+  switch (index) {
+  case VegIndex::Exg:
+    return GST_TREE_STEREO_INDEX_EXG;
+  case VegIndex::ExgExr:
+    return GST_TREE_STEREO_INDEX_EXG_EXR;
+  case VegIndex::ExgNorm:
+    return GST_TREE_STEREO_INDEX_EXG_NORM;
+  case VegIndex::ExgExrNorm:
+    return GST_TREE_STEREO_INDEX_EXG_EXR_NORM;
+  }
+  throw std::logic_error("unknown vegetation index");
 }
 
 } // namespace treestereo::gst

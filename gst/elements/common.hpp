@@ -10,10 +10,13 @@
 #include <opencv2/core.hpp>
 
 #include "treestereo/canopy.hpp"
+#include "treestereo/depth.hpp"
 #include "treestereo/errors.hpp"
+#include "treestereo/match.hpp"
 #include "treestereo/metrics.hpp"
 #include "treestereo/rowmap.hpp"
 #include "treestereo/rowtrack.hpp"
+#include "treestereo/segment.hpp"
 #include "treestereo/types.hpp"
 
 #include <exception>
@@ -73,9 +76,24 @@ void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *meta);
 /* A copy of @m in a new GstBuffer, rows packed (stride = cols * elemSize). */
 GstBuffer *buffer_from_mat(const cv::Mat &m);
 
-/* The matches of siftmatch's meta as lib's matches, and lib's points as the points meta's. */
+/* The matches meta's matches as lib's, and lib's matches as the meta's. */
 std::vector<StereoMatch> matches_from_meta(const GstTreeStereoMatchesMeta *meta);
+std::vector<GstTreeStereoMatch> to_gst_matches(const std::vector<StereoMatch> &matches);
+/* lib's points as the points meta's, and the points meta's (all of them, valid or not) as
+ * lib's. */
 std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &points);
+std::vector<Point3> points_from_meta(const GstTreeStereoPointsMeta *meta);
+
+/* lib's matching method <-> the meta's. */
+GstTreeStereoMatchMethod match_method_to_gst(MatchMethod m);
+MatchMethod match_method_from_gst(GstTreeStereoMatchMethod m);
+/* lib's match statistics -> the meta/message's, with the method and the whole run's time. */
+void match_stats_to_gst(const MatchStats &st, GstTreeStereoMatchMethod method, double total_ms,
+                        GstTreeStereoMatchStats *out);
+/* lib's depth statistics -> the points meta/message's (n_grid is left as it is). */
+void depth_stats_to_gst(const DepthStats &s, GstTreeStereoDepthStats *out);
+/* lib's vegetation index -> the vegetation meta's. */
+GstTreeStereoVegetationIndex veg_index_to_gst(VegIndex index);
 
 /* Silhouette (lib/) -> vegetation view of the meta. Without @mask_buffer the mask is copied into
  * a new GstBuffer. With it, s.mask must already wrap @mask_buffer's memory (the caller let lib/
@@ -178,8 +196,7 @@ extern const NeededMeta kMetricsMeta;    /* treemetrics' */
  * <who> needs the <meta> of <upstream> upstream<then>". @who defaults to the element's factory
  * name, @then to ".". */
 void post_missing_meta(GstElement *element, GstMessageType type, GstBuffer *buf,
-                       const NeededMeta &need, const char *who = nullptr,
-                       const char *then = ".");
+                       const NeededMeta &need, const char *who = nullptr, const char *then = ".");
 
 /* The domain and code an exception maps to (see the table above). */
 struct ErrorCode {

@@ -217,21 +217,6 @@ static GType gst_exg_segment_keep_get_type(void)
   return type;
 }
 
-static GstTreeStereoVegetationIndex meta_index(VegIndex index)
-{
-  switch (index) {
-  case VegIndex::Exg:
-    return GST_TREE_STEREO_INDEX_EXG;
-  case VegIndex::ExgExr:
-    return GST_TREE_STEREO_INDEX_EXG_EXR;
-  case VegIndex::ExgNorm:
-    return GST_TREE_STEREO_INDEX_EXG_NORM;
-  case VegIndex::ExgExrNorm:
-    return GST_TREE_STEREO_INDEX_EXG_EXR_NORM;
-  }
-  throw std::logic_error("exgsegment: unknown vegetation index");
-}
-
 static Settings snapshot(GstExgSegment *self)
 {
   std::lock_guard<std::mutex> g(self->state->lock);
@@ -258,8 +243,7 @@ static void ensure_segmenters(GstExgSegment *self, const Settings &s)
 }
 
 static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *incaps,
-                                         GstVideoInfo *in_info,
-                                         GstCaps *, GstVideoInfo *)
+                                         GstVideoInfo *in_info, GstCaps *, GstVideoInfo *)
 {
   GstExgSegment *self = GST_EXG_SEGMENT(filter);
   State *st = self->state;
@@ -323,7 +307,7 @@ static GstFlowReturn process(GstExgSegment *self, GstBuffer *buf)
   /* before mapping: a mapped frame holds a ref, and a buffer with two refs takes no meta */
   GstTreeStereoVegetationMeta *meta =
       gst_buffer_add_tree_stereo_vegetation_meta(buf, guint(st->n_views));
-  meta->index = meta_index(s.params.index);
+  meta->index = veg_index_to_gst(s.params.index);
   {
     /* read only: mapping for writing would copy pixels a tee still shares */
     MappedFrame frame(&filter->in_info, buf, GST_MAP_READ);

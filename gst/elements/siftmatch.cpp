@@ -134,14 +134,8 @@ const MatchParams &preset()
   return p;
 }
 
-GstTreeStereoMatchMethod method_to_gst(MatchMethod m)
-{
-  return m == MatchMethod::CosineNorm ? GST_TREE_STEREO_MATCH_COSINE_NORM
-                                      : GST_TREE_STEREO_MATCH_EUCLIDEAN;
-}
-
 struct Settings {
-  GstTreeStereoMatchMethod method = method_to_gst(preset().matcher.method);
+  GstTreeStereoMatchMethod method = treestereo::gst::match_method_to_gst(preset().matcher.method);
   double ratio = preset().matcher.ratio;
   int candidates = preset().matcher.candidates;
   double epipolar_tolerance = preset().matcher.constraints.epipolar_tolerance;
@@ -287,8 +281,7 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   p.detect.use_mask = s.use_mask;
   p.detect.engine = s.upright ? SiftEngine::Upright : SiftEngine::OpenCV;
   p.detect.mask_inset = s.mask_inset;
-  p.matcher.method = s.method == GST_TREE_STEREO_MATCH_COSINE_NORM ? MatchMethod::CosineNorm
-                                                                   : MatchMethod::Euclidean;
+  p.matcher.method = treestereo::gst::match_method_from_gst(s.method);
   p.matcher.ratio = s.ratio;
   p.matcher.candidates = s.candidates;
   p.matcher.constraints.epipolar_tolerance = s.epipolar_tolerance;
@@ -350,25 +343,6 @@ private:
   GstBuffer *buffer_ = nullptr;
 };
 
-static void fill_stats(GstTreeStereoMatchStats *out, const Settings &s, const MatchStats &st,
-                       double total_ms)
-{
-  out->method = s.method;
-  out->keypoints_left = guint(st.keypoints[LEFT]);
-  out->keypoints_right = guint(st.keypoints[RIGHT]);
-  out->matches = guint(st.matches);
-  out->candidates_tested = guint(st.candidates_tested);
-  out->rejected_ratio = guint(st.rejected_ratio);
-  out->rejected_epipolar = guint(st.rejected_epipolar);
-  out->rejected_disparity = guint(st.rejected_disparity);
-  out->rejected_mutual = guint(st.rejected_mutual);
-  out->rejected_refine = guint(st.rejected_refine);
-  out->detect_ms = st.detect_ms;
-  out->match_ms = st.match_ms;
-  out->refine_ms = st.refine_ms;
-  out->total_ms = total_ms;
-}
-
 /* Runs the matcher on @buf (read only, with its geometry meta @gm) and attaches the matches
  * meta. Throws on bad input. */
 static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereoGeometryMeta *gm,
@@ -413,17 +387,13 @@ static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereo
                     veg ? masks[RIGHT]->mat() : cv::Mat());
   }
 
-  std::vector<GstTreeStereoMatch> matches(r.matches.size());
-  for (std::size_t i = 0; i < r.matches.size(); i++) {
-    const StereoMatch &m = r.matches[i];
-    matches[i] = GstTreeStereoMatch{m.xl, m.yl, m.xr, m.yr, m.score};
-  }
+  const std::vector<GstTreeStereoMatch> matches = treestereo::gst::to_gst_matches(r.matches);
   gst_buffer_add_tree_stereo_matches_meta(buf, s.method, guint(r.stats.keypoints[LEFT]),
                                           guint(r.stats.keypoints[RIGHT]), matches.data(),
                                           guint(matches.size()));
   const double total_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  fill_stats(out, s, r.stats, total_ms);
+  treestereo::gst::match_stats_to_gst(r.stats, s.method, total_ms, out);
   GST_LOG_OBJECT(self, "%u/%u keypoints, %u matches, %.1f ms", out->keypoints_left,
                  out->keypoints_right, out->matches, total_ms);
 }
@@ -707,10 +677,11 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
 
   g_object_class_install_property(
       gobject_class, PROP_METHOD,
-      g_param_spec_enum("method", "Method", "How a keypoint's partner is chosen among the "
+      g_param_spec_enum("method", "Method",
+                        "How a keypoint's partner is chosen among the "
                         "candidates that satisfy the stereo constraints",
-                        GST_TYPE_SIFT_MATCH_METHOD, method_to_gst(d.matcher.method),
-                        PROP_FLAGS));
+                        GST_TYPE_SIFT_MATCH_METHOD,
+                        treestereo::gst::match_method_to_gst(d.matcher.method), PROP_FLAGS));
   install_double(gobject_class, PROP_RATIO, "ratio", "Ratio",
                  "Ratio test: keep a match only when its distance (euclidean) or angle "
                  "(cosine-norm) is below ratio x the second best's; 1 turns the test off",

@@ -320,9 +320,9 @@ static void start_plan(Plan &p, const Settings &s, int n_bands)
         "spraycontrol's sections does not match its section count: set sections=0 or to that "
         "count.",
         "spraycontrol: sections=" + std::to_string(s.sections) + " but " +
-            (p.ranges.empty() ? "the row map has " + std::to_string(n_bands) + " bands"
-                              : "section-heights gives " + std::to_string(p.ranges.size()) +
-                                    " ranges"));
+            (p.ranges.empty()
+                 ? "the row map has " + std::to_string(n_bands) + " bands"
+                 : "section-heights gives " + std::to_string(p.ranges.size()) + " ranges"));
   sp.n_sections = wanted;
   sp.nozzle_offset_m = s.nozzle_offset;
   sp.valve_latency_ns = std::int64_t(s.valve_latency) * GST_MSECOND;

@@ -265,22 +265,6 @@ static Settings snapshot(GstStereoDepth *self)
   return self->state->settings;
 }
 
-static void fill_stats(const DepthStats &s, GstTreeStereoDepthStats *out)
-{
-  out->n_points = guint(s.n_points);
-  out->n_valid = guint(s.n_valid);
-  out->dropped_disparity = guint(s.dropped_disparity);
-  out->dropped_range = guint(s.dropped_range);
-  out->dropped_outlier = guint(s.dropped_outlier);
-  out->median_z_mm = s.median_mm;
-  out->mad_z_mm = s.mad_mm;
-  out->p05_z_mm = s.p05_mm;
-  out->p95_z_mm = s.p95_mm;
-  out->accept_lo_mm = s.accept_lo_mm;
-  out->accept_hi_mm = s.accept_hi_mm;
-  out->dropped_zone = guint(s.dropped_zone);
-}
-
 /* Says once why densify=TRUE does nothing on this stream. The same causes stop the 3D canopy
  * (canopy_depth_of() leaves them to this one warning), so with canopy on it says both. */
 static void warn_no_densify(GstStereoDepth *self, const Settings &s, const char *why)
@@ -363,7 +347,7 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
     out.canopy.silhouette.mask = cv::Mat::zeros(g.view_size, CV_8U);
     DepthResult r = triangulate_matches(seeds, g, s.dense.filter);
     out.points = treestereo::gst::to_gst_points(r.points);
-    fill_stats(r.stats, &out.stats);
+    treestereo::gst::depth_stats_to_gst(r.stats, &out.stats);
     return true;
   }
   treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
@@ -381,7 +365,7 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
         std::uint32_t(std::lround(m.xl));
   }
   out.points = treestereo::gst::to_gst_points(c.depth.points);
-  fill_stats(c.depth.stats, &out.stats);
+  treestereo::gst::depth_stats_to_gst(c.depth.stats, &out.stats);
   out.stats.n_grid = guint(c.matches.size() - c.n_seeds);
   const CanopyResult &cr = c.canopy;
   GST_DEBUG_OBJECT(self,
@@ -437,7 +421,7 @@ static void sparse_depth(GstStereoDepth *self, GstBuffer *buf, const GstTreeSter
                               std::uint32_t(std::lround(m.xl));
   }
   out.points = treestereo::gst::to_gst_points(r.points);
-  fill_stats(r.stats, &out.stats);
+  treestereo::gst::depth_stats_to_gst(r.stats, &out.stats);
   out.stats.n_grid = guint(grid.size());
 }
 
@@ -493,7 +477,7 @@ static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g,
       treestereo::gst::gray_view(treestereo::gst::view_mat(mat, RIGHT, 2), layout);
   const DenseResult r = dense_depth(left, right, sil.get().mask, box, g, s.dense);
   out.points = treestereo::gst::to_gst_points(r.points);
-  fill_stats(r.stats, &out.stats);
+  treestereo::gst::depth_stats_to_gst(r.stats, &out.stats);
   out.box = r.box;
   if (!r.depth_mm.empty())
     out.depth_map = depth_map_buffer(r.depth_mm);

@@ -273,30 +273,16 @@ static Settings snapshot(GstTreeMetrics *self)
   return self->state->settings;
 }
 
-static std::vector<Point3> points_of(const GstTreeStereoPointsMeta *pm)
-{
-  std::vector<Point3> pts(pm->n_points);
-  for (guint i = 0; i < pm->n_points; i++) {
-    const GstTreeStereoPoint &p = pm->points[i];
-    pts[i].x = p.x;
-    pts[i].y = p.y;
-    pts[i].z = p.z;
-    pts[i].match_index = p.match_index;
-    pts[i].valid = p.valid != FALSE;
-  }
-  return pts;
-}
-
 /* Once per run: which upstream element is missing. The frame still gets tree-present=false. */
 static void warn_missing(GstTreeMetrics *self, GstBuffer *buf, bool veg)
 {
   if (self->state->warned_missing)
     return;
   self->state->warned_missing = true;
-  treestereo::gst::post_missing_meta(
-      GST_ELEMENT(self), GST_MESSAGE_WARNING, buf,
-      !veg ? treestereo::gst::kVegetationMeta : treestereo::gst::kPointsMeta, nullptr,
-      ". Reporting tree-present=false.");
+  treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_WARNING, buf,
+                                     !veg ? treestereo::gst::kVegetationMeta
+                                          : treestereo::gst::kPointsMeta,
+                                     nullptr, ". Reporting tree-present=false.");
 }
 
 /* Posts one "treestereo-tree" message per record (no lock held) and, when a row map is asked
@@ -592,7 +578,7 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
       p.round_limbs = s.round_limbs;
       p.extreme_points = int(s.extreme_points);
       const treestereo::gst::MappedSilhouette sil(silhouette);
-      m = compute_tree_metrics(sil.get(), points_of(pm), geometry, p);
+      m = compute_tree_metrics(sil.get(), treestereo::gst::points_from_meta(pm), geometry, p);
     }
     if (st->smoother.alpha() != s.smoothing)
       st->smoother = MetricsSmoother(s.smoothing);

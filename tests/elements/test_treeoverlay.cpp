@@ -445,8 +445,8 @@ GST_START_TEST(test_odd_side_by_side_is_a_stream_error)
   GstHarness *h = harness("treeoverlay", "RGB", 2 * VW + 1, true);
   GstBus *bus = gst_bus_new();
   gst_element_set_bus(h->element, bus);
-  GstBuffer *in = gst_buffer_new_allocate(nullptr, gsize(GST_ROUND_UP_4((2 * VW + 1) * 3)) * H,
-                                          nullptr);
+  GstBuffer *in =
+      gst_buffer_new_allocate(nullptr, gsize(GST_ROUND_UP_4((2 * VW + 1) * 3)) * H, nullptr);
   fail_unless_equals_int(gst_harness_push(h, in), GST_FLOW_ERROR);
   expect_bus_error(bus, GST_MESSAGE_ERROR, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED,
                    "treeoverlay cannot use what arrived from upstream: check the elements "
