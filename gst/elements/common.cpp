@@ -536,23 +536,24 @@ static std::string element_kind(GstElement *element)
 }
 
 static void post(GstElement *element, GstMessageType type, const ErrorCode &c,
-                 const std::string &message, const std::string &debug)
+                 const std::string &message, const std::string &debug, const char *file,
+                 const char *function, int line)
 {
   ensure_debug_category();
   gst_element_message_full(element, type, c.domain, c.code, g_strdup(message.c_str()),
-                           debug.empty() ? nullptr : g_strdup(debug.c_str()), __FILE__,
-                           GST_FUNCTION, __LINE__);
+                           debug.empty() ? nullptr : g_strdup(debug.c_str()), file, function, line);
 }
 
 void post_missing_meta(GstElement *element, GstMessageType type, GstBuffer *buf,
-                       const NeededMeta &need, const char *who, const char *then)
+                       const NeededMeta &need, const char *who, const char *then, const char *file,
+                       const char *function, int line)
 {
   const std::string by = who ? who : element_kind(element);
-  gchar *debug = g_strdup_printf("buffer %" GST_PTR_FORMAT " has no %s", buf, need.api);
+  gchar *debug = gst_info_strdup_printf("buffer %" GST_PTR_FORMAT " has no %s", buf, need.api);
   post(element, type, {GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED},
        std::string("No ") + need.what + " on the buffer: " + by + " needs the " + need.meta +
            " of " + need.upstream + " upstream" + (then ? then : "."),
-       debug);
+       debug, file, function, line);
   g_free(debug);
 }
 
@@ -610,14 +611,16 @@ std::string error_advice(GstElement *element, const std::exception &e)
   return name + " stopped on an internal error; the debug detail has the cause.";
 }
 
-void report_exception(GstElement *element, const std::exception &e, const std::string &message)
+void report_exception(GstElement *element, const std::exception &e, const std::string &message,
+                      const char *file, const char *function, int line)
 {
   const auto *te = dynamic_cast<const Error *>(&e);
   if (message.empty() && te && !te->detail().empty())
-    post(element, GST_MESSAGE_ERROR, error_code_of(e), e.what(), te->detail());
+    post(element, GST_MESSAGE_ERROR, error_code_of(e), e.what(), te->detail(), file, function,
+         line);
   else
     post(element, GST_MESSAGE_ERROR, error_code_of(e),
-         message.empty() ? error_advice(element, e) : message, e.what());
+         message.empty() ? error_advice(element, e) : message, e.what(), file, function, line);
 }
 
 std::vector<StereoMatch> matches_from_meta(const GstTreeStereoMatchesMeta *meta)

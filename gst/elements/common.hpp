@@ -196,7 +196,9 @@ extern const NeededMeta kMetricsMeta;    /* treemetrics' */
  * <who> needs the <meta> of <upstream> upstream<then>". @who defaults to the element's factory
  * name, @then to ".". */
 void post_missing_meta(GstElement *element, GstMessageType type, GstBuffer *buf,
-                       const NeededMeta &need, const char *who = nullptr, const char *then = ".");
+                       const NeededMeta &need, const char *who = nullptr, const char *then = ".",
+                       const char *file = __builtin_FILE(),
+                       const char *function = __builtin_FUNCTION(), int line = __builtin_LINE());
 
 /* The domain and code an exception maps to (see the table above). */
 struct ErrorCode {
@@ -211,19 +213,24 @@ std::string error_advice(GstElement *element, const std::exception &e);
 
 /* Posts @e as a GST_ELEMENT_ERROR with the domain and code of its type. The message is @message,
  * else a treestereo::Error's what() when it carries a detail (then the debug string), else
- * error_advice(); the debug string is the exception's text. */
+ * error_advice(); the debug string is the exception's text. @file, @function and @line (the
+ * caller's by default) place the post in the debug string, as GST_ELEMENT_ERROR does. */
 void report_exception(GstElement *element, const std::exception &e,
-                      const std::string &message = std::string());
+                      const std::string &message = std::string(),
+                      const char *file = __builtin_FILE(),
+                      const char *function = __builtin_FUNCTION(), int line = __builtin_LINE());
 
 /* Runs @f; an exception becomes a GST_ELEMENT_ERROR (report_exception) and @on_error is
  * returned. Every vfunc that calls lib/ goes through this, so no exception crosses into
  * GStreamer. */
-template <typename R, typename F> R guarded(GstElement *element, R on_error, F &&f)
+template <typename R, typename F>
+R guarded(GstElement *element, R on_error, F &&f, const char *file = __builtin_FILE(),
+          const char *function = __builtin_FUNCTION(), int line = __builtin_LINE())
 {
   try {
     return f();
   } catch (const std::exception &e) {
-    report_exception(element, e);
+    report_exception(element, e, std::string(), file, function, line);
     return on_error;
   }
 }
