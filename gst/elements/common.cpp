@@ -1,5 +1,7 @@
 #include "common.hpp"
 
+#include "treestereo/calibration.hpp"
+#include "treestereo/errors.hpp"
 #include "treestereo/features.hpp"
 
 #include <algorithm>
@@ -514,10 +516,111 @@ void post_element_message(GstElement *element, GstStructure *s)
   gst_element_post_message(element, gst_message_new_element(GST_OBJECT(element), s));
 }
 
-void report_exception(GstElement *element, const std::exception &e)
+const NeededMeta kGeometryMeta{"stereo geometry", "geometry meta", "stereorectify",
+                               "GstTreeStereoGeometryMeta"};
+const NeededMeta kVegetationMeta{"vegetation mask", "vegetation meta", "exgsegment",
+                                 "GstTreeStereoVegetationMeta"};
+const NeededMeta kMatchesMeta{"stereo matches", "matches meta", "siftmatch",
+                              "GstTreeStereoMatchesMeta"};
+const NeededMeta kPointsMeta{"3D points", "points meta", "stereodepth", "GstTreeStereoPointsMeta"};
+const NeededMeta kMetricsMeta{"rig position", "metrics meta", "treemetrics",
+                              "GstTreeStereoMetricsMeta"};
+
+/* The element's factory name ("siftmatch"), or its object name without a factory. */
+static std::string element_kind(GstElement *element)
+{
+  GstElementFactory *f = gst_element_get_factory(element);
+  if (f)
+    return GST_OBJECT_NAME(f);
+  return GST_OBJECT_NAME(element);
+}
+
+static void post(GstElement *element, GstMessageType type, const ErrorCode &c,
+                 const std::string &message, const std::string &debug, const char *file,
+                 const char *function, int line)
 {
   ensure_debug_category();
-  GST_ELEMENT_ERROR(element, STREAM, FAILED, ("%s", e.what()), ("%s", e.what()));
+  gst_element_message_full(element, type, c.domain, c.code, g_strdup(message.c_str()),
+                           debug.empty() ? nullptr : g_strdup(debug.c_str()), file, function, line);
+}
+
+void post_missing_meta(GstElement *element, GstMessageType type, GstBuffer *buf,
+                       const NeededMeta &need, const char *who, const char *then, const char *file,
+                       const char *function, int line)
+{
+  const std::string by = who ? who : element_kind(element);
+  gchar *debug = gst_info_strdup_printf("buffer %" GST_PTR_FORMAT " has no %s", buf, need.api);
+  post(element, type, {GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED},
+       std::string("No ") + need.what + " on the buffer: " + by + " needs the " + need.meta +
+           " of " + need.upstream + " upstream" + (then ? then : "."),
+       debug, file, function, line);
+  g_free(debug);
+}
+
+static FileAccess access_of(const std::exception &e)
+{
+  if (const auto *c = dynamic_cast<const CalibrationError *>(&e))
+    return c->access();
+  if (const auto *f = dynamic_cast<const FileError *>(&e))
+    return f->access();
+  return FileAccess::None;
+}
+
+ErrorCode error_code_of(const std::exception &e)
+{
+  switch (access_of(e)) {
+  case FileAccess::Read:
+    return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_READ};
+  case FileAccess::Write:
+    return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_WRITE};
+  case FileAccess::None:
+    break;
+  }
+  if (dynamic_cast<const BadSettings *>(&e))
+    return {GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS};
+  return {GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED}; // BadInput, and faults of our own
+}
+
+std::string error_advice(GstElement *element, const std::exception &e)
+{
+  const std::string name = element_kind(element);
+  if (const auto *c = dynamic_cast<const CalibrationError *>(&e)) {
+    switch (c->access()) {
+    case FileAccess::Read:
+      return "Could not read the calibration \"" + c->file() +
+             "\": check the path in the calibration property.";
+    case FileAccess::Write:
+      return "Could not write the calibration to \"" + c->file() +
+             "\": check that its folder exists and is writable.";
+    case FileAccess::None:
+      return "The calibration \"" + c->file() + "\" cannot be used: give " + name +
+             " an OpenCV YAML/XML calibration (M1 D1 M2 D2 R T) or a ROS pair "
+             "'left.yaml;right.yaml'.";
+    }
+  }
+  if (const auto *f = dynamic_cast<const FileError *>(&e))
+    return f->access() == FileAccess::Write
+               ? "Could not write \"" + f->path() +
+                     "\": check that its folder exists, is writable and has room."
+               : "Could not read \"" + f->path() + "\": check that it exists and is readable.";
+  if (dynamic_cast<const BadSettings *>(&e))
+    return "The settings of " + name +
+           " cannot be used: change the property the debug detail names.";
+  if (dynamic_cast<const BadInput *>(&e))
+    return name + " cannot use what arrived from upstream: check the elements before it.";
+  return name + " stopped on an internal error; the debug detail has the cause.";
+}
+
+void report_exception(GstElement *element, const std::exception &e, const std::string &message,
+                      const char *file, const char *function, int line)
+{
+  const auto *te = dynamic_cast<const Error *>(&e);
+  if (message.empty() && te && !te->detail().empty())
+    post(element, GST_MESSAGE_ERROR, error_code_of(e), e.what(), te->detail(), file, function,
+         line);
+  else
+    post(element, GST_MESSAGE_ERROR, error_code_of(e),
+         message.empty() ? error_advice(element, e) : message, e.what(), file, function, line);
 }
 
 std::vector<StereoMatch> matches_from_meta(const GstTreeStereoMatchesMeta *meta)
@@ -530,6 +633,16 @@ std::vector<StereoMatch> matches_from_meta(const GstTreeStereoMatchesMeta *meta)
   return out;
 }
 
+std::vector<GstTreeStereoMatch> to_gst_matches(const std::vector<StereoMatch> &matches)
+{
+  std::vector<GstTreeStereoMatch> out(matches.size());
+  for (std::size_t i = 0; i < matches.size(); i++) {
+    const StereoMatch &m = matches[i];
+    out[i] = GstTreeStereoMatch{m.xl, m.yl, m.xr, m.yr, m.score};
+  }
+  return out;
+}
+
 std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &points)
 {
   std::vector<GstTreeStereoPoint> out(points.size());
@@ -537,6 +650,81 @@ std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &points)
     out[i] = {points[i].x, points[i].y, points[i].z, points[i].match_index,
               points[i].valid ? TRUE : FALSE};
   return out;
+}
+
+std::vector<Point3> points_from_meta(const GstTreeStereoPointsMeta *meta)
+{
+  std::vector<Point3> pts(meta->n_points);
+  for (guint i = 0; i < meta->n_points; i++) {
+    const GstTreeStereoPoint &p = meta->points[i];
+    pts[i].x = p.x;
+    pts[i].y = p.y;
+    pts[i].z = p.z;
+    pts[i].match_index = p.match_index;
+    pts[i].valid = p.valid != FALSE;
+  }
+  return pts;
+}
+
+GstTreeStereoMatchMethod match_method_to_gst(MatchMethod m)
+{
+  return m == MatchMethod::CosineNorm ? GST_TREE_STEREO_MATCH_COSINE_NORM
+                                      : GST_TREE_STEREO_MATCH_EUCLIDEAN;
+}
+
+MatchMethod match_method_from_gst(GstTreeStereoMatchMethod m)
+{
+  return m == GST_TREE_STEREO_MATCH_COSINE_NORM ? MatchMethod::CosineNorm : MatchMethod::Euclidean;
+}
+
+void match_stats_to_gst(const MatchStats &st, GstTreeStereoMatchMethod method, double total_ms,
+                        GstTreeStereoMatchStats *out)
+{
+  out->method = method;
+  out->keypoints_left = guint(st.keypoints[LEFT]);
+  out->keypoints_right = guint(st.keypoints[RIGHT]);
+  out->matches = guint(st.matches);
+  out->candidates_tested = guint(st.candidates_tested);
+  out->rejected_ratio = guint(st.rejected_ratio);
+  out->rejected_epipolar = guint(st.rejected_epipolar);
+  out->rejected_disparity = guint(st.rejected_disparity);
+  out->rejected_mutual = guint(st.rejected_mutual);
+  out->rejected_refine = guint(st.rejected_refine);
+  out->detect_ms = st.detect_ms;
+  out->match_ms = st.match_ms;
+  out->refine_ms = st.refine_ms;
+  out->total_ms = total_ms;
+}
+
+void depth_stats_to_gst(const DepthStats &s, GstTreeStereoDepthStats *out)
+{
+  out->n_points = guint(s.n_points);
+  out->n_valid = guint(s.n_valid);
+  out->dropped_disparity = guint(s.dropped_disparity);
+  out->dropped_range = guint(s.dropped_range);
+  out->dropped_outlier = guint(s.dropped_outlier);
+  out->median_z_mm = s.median_mm;
+  out->mad_z_mm = s.mad_mm;
+  out->p05_z_mm = s.p05_mm;
+  out->p95_z_mm = s.p95_mm;
+  out->accept_lo_mm = s.accept_lo_mm;
+  out->accept_hi_mm = s.accept_hi_mm;
+  out->dropped_zone = guint(s.dropped_zone);
+}
+
+GstTreeStereoVegetationIndex veg_index_to_gst(VegIndex index)
+{
+  switch (index) {
+  case VegIndex::Exg:
+    return GST_TREE_STEREO_INDEX_EXG;
+  case VegIndex::ExgExr:
+    return GST_TREE_STEREO_INDEX_EXG_EXR;
+  case VegIndex::ExgNorm:
+    return GST_TREE_STEREO_INDEX_EXG_NORM;
+  case VegIndex::ExgExrNorm:
+    return GST_TREE_STEREO_INDEX_EXG_EXR_NORM;
+  }
+  throw std::logic_error("unknown vegetation index");
 }
 
 } // namespace treestereo::gst

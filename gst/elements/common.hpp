@@ -1,5 +1,6 @@
 /* Shared by the treestereo elements: frames as cv::Mat without copies, meta <-> lib/ type
- * conversions, and the one way an exception becomes a GST_ELEMENT_ERROR. */
+ * conversions, and the error policy (how a missing meta, an exception or a bad setting becomes
+ * a GST_ELEMENT_ERROR). */
 #pragma once
 
 #include <gst/gst.h>
@@ -9,9 +10,13 @@
 #include <opencv2/core.hpp>
 
 #include "treestereo/canopy.hpp"
+#include "treestereo/depth.hpp"
+#include "treestereo/errors.hpp"
+#include "treestereo/match.hpp"
 #include "treestereo/metrics.hpp"
 #include "treestereo/rowmap.hpp"
 #include "treestereo/rowtrack.hpp"
+#include "treestereo/segment.hpp"
 #include "treestereo/types.hpp"
 
 #include <exception>
@@ -71,9 +76,24 @@ void geometry_to_meta(const StereoGeometry &g, GstTreeStereoGeometryMeta *meta);
 /* A copy of @m in a new GstBuffer, rows packed (stride = cols * elemSize). */
 GstBuffer *buffer_from_mat(const cv::Mat &m);
 
-/* The matches of siftmatch's meta as lib's matches, and lib's points as the points meta's. */
+/* The matches meta's matches as lib's, and lib's matches as the meta's. */
 std::vector<StereoMatch> matches_from_meta(const GstTreeStereoMatchesMeta *meta);
+std::vector<GstTreeStereoMatch> to_gst_matches(const std::vector<StereoMatch> &matches);
+/* lib's points as the points meta's, and the points meta's (all of them, valid or not) as
+ * lib's. */
 std::vector<GstTreeStereoPoint> to_gst_points(const std::vector<Point3> &points);
+std::vector<Point3> points_from_meta(const GstTreeStereoPointsMeta *meta);
+
+/* lib's matching method <-> the meta's. */
+GstTreeStereoMatchMethod match_method_to_gst(MatchMethod m);
+MatchMethod match_method_from_gst(GstTreeStereoMatchMethod m);
+/* lib's match statistics -> the meta/message's, with the method and the whole run's time. */
+void match_stats_to_gst(const MatchStats &st, GstTreeStereoMatchMethod method, double total_ms,
+                        GstTreeStereoMatchStats *out);
+/* lib's depth statistics -> the points meta/message's (n_grid is left as it is). */
+void depth_stats_to_gst(const DepthStats &s, GstTreeStereoDepthStats *out);
+/* lib's vegetation index -> the vegetation meta's. */
+GstTreeStereoVegetationIndex veg_index_to_gst(VegIndex index);
 
 /* Silhouette (lib/) -> vegetation view of the meta. Without @mask_buffer the mask is copied into
  * a new GstBuffer. With it, s.mask must already wrap @mask_buffer's memory (the caller let lib/
@@ -148,18 +168,69 @@ void post_element_message(GstElement *element, GstStructure *s);
 
 namespace treestereo::gst {
 
-/* Reports an exception from lib/ as a GST_ELEMENT_ERROR (STREAM/FAILED, its message as the
- * text a person reads). */
-void report_exception(GstElement *element, const std::exception &e);
+/* The error policy of the elements. A post carries a sentence a person can act on as its message
+ * and the technical detail (an exception's text, a buffer, the values at odds) as its debug
+ * string. Domain and code say who can fix it:
+ *   missing upstream meta, bad data from upstream   STREAM/FAILED
+ *   a setting (property value, calibration) that cannot be used   RESOURCE/SETTINGS
+ *   a file that cannot be read or written   RESOURCE/OPEN_READ, RESOURCE/OPEN_WRITE
+ *   caps that do not fit   CORE/NEGOTIATION (posted where the caps are checked)
+ *   anything else (an internal fault)   STREAM/FAILED */
 
-/* Runs @f; an exception becomes a GST_ELEMENT_ERROR and @on_error is returned. Every vfunc that
- * calls lib/ goes through this, so no exception crosses into GStreamer. */
-template <typename R, typename F> R guarded(GstElement *element, R on_error, F &&f)
+/* A meta an element needs from upstream: what a person misses, the meta, the element that adds
+ * it, and its API type (for the debug string). */
+struct NeededMeta {
+  const char *what;
+  const char *meta;
+  const char *upstream;
+  const char *api;
+};
+extern const NeededMeta kGeometryMeta;   /* stereorectify's */
+extern const NeededMeta kVegetationMeta; /* exgsegment's */
+extern const NeededMeta kMatchesMeta;    /* siftmatch's */
+extern const NeededMeta kPointsMeta;     /* stereodepth's */
+extern const NeededMeta kMetricsMeta;    /* treemetrics' */
+
+/* Posts that @buf lacks @need as STREAM/FAILED, an error (the element stops) or a warning
+ * (@type GST_MESSAGE_WARNING: it goes on without), with the message "No <what> on the buffer:
+ * <who> needs the <meta> of <upstream> upstream<then>". @who defaults to the element's factory
+ * name, @then to ".". */
+void post_missing_meta(GstElement *element, GstMessageType type, GstBuffer *buf,
+                       const NeededMeta &need, const char *who = nullptr, const char *then = ".",
+                       const char *file = __builtin_FILE(),
+                       const char *function = __builtin_FUNCTION(), int line = __builtin_LINE());
+
+/* The domain and code an exception maps to (see the table above). */
+struct ErrorCode {
+  GQuark domain;
+  gint code;
+};
+ErrorCode error_code_of(const std::exception &e);
+
+/* The sentence a person reads for @e when the caller has no better one: it names the element
+ * (or the file) and what to change. */
+std::string error_advice(GstElement *element, const std::exception &e);
+
+/* Posts @e as a GST_ELEMENT_ERROR with the domain and code of its type. The message is @message,
+ * else a treestereo::Error's what() when it carries a detail (then the debug string), else
+ * error_advice(); the debug string is the exception's text. @file, @function and @line (the
+ * caller's by default) place the post in the debug string, as GST_ELEMENT_ERROR does. */
+void report_exception(GstElement *element, const std::exception &e,
+                      const std::string &message = std::string(),
+                      const char *file = __builtin_FILE(),
+                      const char *function = __builtin_FUNCTION(), int line = __builtin_LINE());
+
+/* Runs @f; an exception becomes a GST_ELEMENT_ERROR (report_exception) and @on_error is
+ * returned. Every vfunc that calls lib/ goes through this, so no exception crosses into
+ * GStreamer. */
+template <typename R, typename F>
+R guarded(GstElement *element, R on_error, F &&f, const char *file = __builtin_FILE(),
+          const char *function = __builtin_FUNCTION(), int line = __builtin_LINE())
 {
   try {
     return f();
   } catch (const std::exception &e) {
-    report_exception(element, e);
+    report_exception(element, e, std::string(), file, function, line);
     return on_error;
   }
 }

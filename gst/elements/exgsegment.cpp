@@ -217,21 +217,6 @@ static GType gst_exg_segment_keep_get_type(void)
   return type;
 }
 
-static GstTreeStereoVegetationIndex meta_index(VegIndex index)
-{
-  switch (index) {
-  case VegIndex::Exg:
-    return GST_TREE_STEREO_INDEX_EXG;
-  case VegIndex::ExgExr:
-    return GST_TREE_STEREO_INDEX_EXG_EXR;
-  case VegIndex::ExgNorm:
-    return GST_TREE_STEREO_INDEX_EXG_NORM;
-  case VegIndex::ExgExrNorm:
-    return GST_TREE_STEREO_INDEX_EXG_EXR_NORM;
-  }
-  throw std::logic_error("exgsegment: unknown vegetation index");
-}
-
 static Settings snapshot(GstExgSegment *self)
 {
   std::lock_guard<std::mutex> g(self->state->lock);
@@ -257,17 +242,17 @@ static void ensure_segmenters(GstExgSegment *self, const Settings &s)
                   int(p.unmix_edges), p.min_area, keep_mode_name(p.keep));
 }
 
-static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *, GstVideoInfo *in_info,
-                                         GstCaps *, GstVideoInfo *)
+static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *incaps,
+                                         GstVideoInfo *in_info, GstCaps *, GstVideoInfo *)
 {
   GstExgSegment *self = GST_EXG_SEGMENT(filter);
   State *st = self->state;
   const PixelLayout layout = pixel_layout(GST_VIDEO_INFO_FORMAT(in_info));
   if (!layout.color) {
     GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("exgsegment needs a colour format, got %s",
+                      ("exgsegment needs colour frames, got %s: put videoconvert before it.",
                        gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info))),
-                      (nullptr));
+                      ("caps %" GST_PTR_FORMAT, incaps));
     return FALSE;
   }
   st->order = layout.order();
@@ -276,9 +261,10 @@ static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *, GstV
   const cv::Size view(GST_VIDEO_INFO_WIDTH(in_info) / st->n_views, GST_VIDEO_INFO_HEIGHT(in_info));
   if (view.width < 1) {
     GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("a side-by-side frame %d px wide has no room for two views",
+                      ("A side-by-side frame %d px wide has no room for two views: check the "
+                       "caps upstream.",
                        GST_VIDEO_INFO_WIDTH(in_info)),
-                      (nullptr));
+                      ("caps %" GST_PTR_FORMAT, incaps));
     return FALSE;
   }
   return guarded(GST_ELEMENT(self), FALSE, [&] {
@@ -321,12 +307,14 @@ static GstFlowReturn process(GstExgSegment *self, GstBuffer *buf)
   /* before mapping: a mapped frame holds a ref, and a buffer with two refs takes no meta */
   GstTreeStereoVegetationMeta *meta =
       gst_buffer_add_tree_stereo_vegetation_meta(buf, guint(st->n_views));
-  meta->index = meta_index(s.params.index);
+  meta->index = veg_index_to_gst(s.params.index);
   {
     /* read only: mapping for writing would copy pixels a tee still shares */
     MappedFrame frame(&filter->in_info, buf, GST_MAP_READ);
     if (!frame.ok()) {
-      GST_ELEMENT_ERROR(self, STREAM, FAILED, ("could not map the video frame"),
+      GST_ELEMENT_ERROR(self, STREAM, FAILED,
+                        ("exgsegment could not read the frame: the buffer is smaller than its "
+                         "caps say; check the elements before it."),
                         ("buffer of %" G_GSIZE_FORMAT " bytes for %dx%d %s",
                          gst_buffer_get_size(buf), GST_VIDEO_INFO_WIDTH(&filter->in_info),
                          GST_VIDEO_INFO_HEIGHT(&filter->in_info),

@@ -134,14 +134,8 @@ const MatchParams &preset()
   return p;
 }
 
-GstTreeStereoMatchMethod method_to_gst(MatchMethod m)
-{
-  return m == MatchMethod::CosineNorm ? GST_TREE_STEREO_MATCH_COSINE_NORM
-                                      : GST_TREE_STEREO_MATCH_EUCLIDEAN;
-}
-
 struct Settings {
-  GstTreeStereoMatchMethod method = method_to_gst(preset().matcher.method);
+  GstTreeStereoMatchMethod method = treestereo::gst::match_method_to_gst(preset().matcher.method);
   double ratio = preset().matcher.ratio;
   int candidates = preset().matcher.candidates;
   double epipolar_tolerance = preset().matcher.constraints.epipolar_tolerance;
@@ -254,13 +248,15 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   key.max_disparity = s.max_disparity;
   if (s.min_disparity < 0 || s.max_disparity < 0) {
     if (!g.valid())
-      throw std::runtime_error("siftmatch: the stereo geometry meta has no focal length or "
-                               "baseline, so no disparity range can be derived from "
-                               "min-depth/max-depth; set min-disparity and max-disparity");
+      throw BadInput("siftmatch: the stereo geometry meta has no focal length or baseline, so "
+                     "no disparity range can be derived from min-depth/max-depth; set "
+                     "min-disparity and max-disparity");
     if (!(s.max_depth > s.min_depth))
-      throw std::runtime_error("siftmatch: max-depth (" + std::to_string(s.max_depth) +
-                               " mm) must be above min-depth (" + std::to_string(s.min_depth) +
-                               " mm)");
+      throw BadSettings("siftmatch's max-depth must be above its min-depth: raise max-depth or "
+                        "lower min-depth.",
+                        "siftmatch: max-depth (" + std::to_string(s.max_depth) +
+                            " mm) must be above min-depth (" + std::to_string(s.min_depth) +
+                            " mm)");
     const DisparityRange r = disparity_range_for_depth(g, s.min_depth, s.max_depth);
     if (s.min_disparity < 0)
       key.min_disparity = r.min;
@@ -268,10 +264,12 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
       key.max_disparity = r.max;
   }
   if (key.min_disparity > key.max_disparity)
-    throw std::runtime_error("siftmatch: the disparity range is empty: min " +
-                             std::to_string(key.min_disparity) + " px > max " +
-                             std::to_string(key.max_disparity) +
-                             " px; check min-disparity/max-disparity or min-depth/max-depth");
+    throw BadSettings("siftmatch's disparity range is empty: set min-disparity below "
+                      "max-disparity, or min-depth and max-depth that leave a range.",
+                      "siftmatch: the disparity range is empty: min " +
+                          std::to_string(key.min_disparity) + " px > max " +
+                          std::to_string(key.max_disparity) +
+                          " px; check min-disparity/max-disparity or min-depth/max-depth");
   key.scale = resolve_scale(s.scale, g.view_size.width);
   if (st->matcher && st->key == key)
     return *st->matcher;
@@ -283,8 +281,7 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
   p.detect.use_mask = s.use_mask;
   p.detect.engine = s.upright ? SiftEngine::Upright : SiftEngine::OpenCV;
   p.detect.mask_inset = s.mask_inset;
-  p.matcher.method = s.method == GST_TREE_STEREO_MATCH_COSINE_NORM ? MatchMethod::CosineNorm
-                                                                   : MatchMethod::Euclidean;
+  p.matcher.method = treestereo::gst::match_method_from_gst(s.method);
   p.matcher.ratio = s.ratio;
   p.matcher.candidates = s.candidates;
   p.matcher.constraints.epipolar_tolerance = s.epipolar_tolerance;
@@ -346,25 +343,6 @@ private:
   GstBuffer *buffer_ = nullptr;
 };
 
-static void fill_stats(GstTreeStereoMatchStats *out, const Settings &s, const MatchStats &st,
-                       double total_ms)
-{
-  out->method = s.method;
-  out->keypoints_left = guint(st.keypoints[LEFT]);
-  out->keypoints_right = guint(st.keypoints[RIGHT]);
-  out->matches = guint(st.matches);
-  out->candidates_tested = guint(st.candidates_tested);
-  out->rejected_ratio = guint(st.rejected_ratio);
-  out->rejected_epipolar = guint(st.rejected_epipolar);
-  out->rejected_disparity = guint(st.rejected_disparity);
-  out->rejected_mutual = guint(st.rejected_mutual);
-  out->rejected_refine = guint(st.rejected_refine);
-  out->detect_ms = st.detect_ms;
-  out->match_ms = st.match_ms;
-  out->refine_ms = st.refine_ms;
-  out->total_ms = total_ms;
-}
-
 /* Runs the matcher on @buf (read only, with its geometry meta @gm) and attaches the matches
  * meta. Throws on bad input. */
 static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereoGeometryMeta *gm,
@@ -375,10 +353,10 @@ static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereo
   const int frame_w = GST_VIDEO_INFO_WIDTH(&filter->in_info);
   const int frame_h = GST_VIDEO_INFO_HEIGHT(&filter->in_info);
   if (int(gm->view_width) * 2 != frame_w || int(gm->view_height) != frame_h)
-    throw std::runtime_error("siftmatch: the stereo geometry meta is for two " +
-                             std::to_string(gm->view_width) + "x" +
-                             std::to_string(gm->view_height) + " views but the frame is " +
-                             std::to_string(frame_w) + "x" + std::to_string(frame_h));
+    throw BadInput("siftmatch: the stereo geometry meta is for two " +
+                   std::to_string(gm->view_width) + "x" + std::to_string(gm->view_height) +
+                   " views but the frame is " + std::to_string(frame_w) + "x" +
+                   std::to_string(frame_h));
   const StereoGeometry geometry = treestereo::gst::geometry_from_meta(gm);
   const StereoMatcher &matcher = matcher_for(self, s, geometry);
 
@@ -399,9 +377,8 @@ static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereo
       GST_DEBUG_OBJECT(self, "no vegetation meta on the buffers: searching the whole views");
     }
     if (veg && veg->n_views != 2)
-      throw std::runtime_error("siftmatch: the vegetation meta holds " +
-                               std::to_string(veg->n_views) +
-                               " view(s); a side-by-side stereo frame needs 2");
+      throw BadInput("siftmatch: the vegetation meta holds " + std::to_string(veg->n_views) +
+                     " view(s); a side-by-side stereo frame needs 2");
     std::unique_ptr<ViewMask> masks[2];
     if (veg)
       for (int v = 0; v < 2; v++)
@@ -410,17 +387,13 @@ static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereo
                     veg ? masks[RIGHT]->mat() : cv::Mat());
   }
 
-  std::vector<GstTreeStereoMatch> matches(r.matches.size());
-  for (std::size_t i = 0; i < r.matches.size(); i++) {
-    const StereoMatch &m = r.matches[i];
-    matches[i] = GstTreeStereoMatch{m.xl, m.yl, m.xr, m.yr, m.score};
-  }
+  const std::vector<GstTreeStereoMatch> matches = treestereo::gst::to_gst_matches(r.matches);
   gst_buffer_add_tree_stereo_matches_meta(buf, s.method, guint(r.stats.keypoints[LEFT]),
                                           guint(r.stats.keypoints[RIGHT]), matches.data(),
                                           guint(matches.size()));
   const double total_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  fill_stats(out, s, r.stats, total_ms);
+  treestereo::gst::match_stats_to_gst(r.stats, s.method, total_ms, out);
   GST_LOG_OBJECT(self, "%u/%u keypoints, %u matches, %.1f ms", out->keypoints_left,
                  out->keypoints_right, out->matches, total_ms);
 }
@@ -431,10 +404,8 @@ static GstFlowReturn gst_sift_match_transform_ip(GstBaseTransform *trans, GstBuf
   const Settings s = snapshot(self);
   const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
   if (!gm) {
-    GST_ELEMENT_ERROR(self, STREAM, FAILED,
-                      ("No stereo geometry on the buffer: siftmatch needs the geometry meta of "
-                       "stereorectify upstream."),
-                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoGeometryMeta", buf));
+    treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
+                                       treestereo::gst::kGeometryMeta);
     return GST_FLOW_ERROR;
   }
   GstTreeStereoMatchStats stats{};
@@ -706,10 +677,11 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
 
   g_object_class_install_property(
       gobject_class, PROP_METHOD,
-      g_param_spec_enum("method", "Method", "How a keypoint's partner is chosen among the "
+      g_param_spec_enum("method", "Method",
+                        "How a keypoint's partner is chosen among the "
                         "candidates that satisfy the stereo constraints",
-                        GST_TYPE_SIFT_MATCH_METHOD, method_to_gst(d.matcher.method),
-                        PROP_FLAGS));
+                        GST_TYPE_SIFT_MATCH_METHOD,
+                        treestereo::gst::match_method_to_gst(d.matcher.method), PROP_FLAGS));
   install_double(gobject_class, PROP_RATIO, "ratio", "Ratio",
                  "Ratio test: keep a match only when its distance (euclidean) or angle "
                  "(cosine-norm) is below ratio x the second best's; 1 turns the test off",

@@ -293,23 +293,36 @@ static void schedule_hold(GstSprayControl *self, Plan &p, std::int64_t running_n
   }
 }
 
-/* The planner from the settings; throws std::runtime_error naming the property. */
+/* The message for a section-heights that does not parse. */
+static const char *const kBadSectionHeights =
+    "spraycontrol's section-heights cannot be used: give lo:hi pairs in m above the ground, "
+    "comma separated (e.g. 0.4:0.7,0.7:1.0), or an empty string for the row map's bands.";
+
+/* The section heights of the settings; throws BadSettings. */
+static std::vector<SectionRange> section_ranges(const Settings &s)
+{
+  try {
+    return parse_section_heights(s.section_heights);
+  } catch (const std::exception &e) {
+    throw BadSettings(kBadSectionHeights,
+                      "invalid section-heights \"" + s.section_heights + "\": " + e.what());
+  }
+}
+
+/* The planner from the settings; throws BadSettings naming the property. */
 static void start_plan(Plan &p, const Settings &s, int n_bands)
 {
   SprayParams sp;
-  try {
-    p.ranges = parse_section_heights(s.section_heights);
-  } catch (const std::exception &e) {
-    throw std::runtime_error(std::string("spraycontrol: invalid section-heights: ") + e.what());
-  }
+  p.ranges = section_ranges(s);
   const int wanted = p.ranges.empty() ? n_bands : int(p.ranges.size());
   if (s.sections != 0 && int(s.sections) != wanted)
-    throw std::runtime_error(
+    throw BadSettings(
+        "spraycontrol's sections does not match its section count: set sections=0 or to that "
+        "count.",
         "spraycontrol: sections=" + std::to_string(s.sections) + " but " +
-        (p.ranges.empty() ? "the row map has " + std::to_string(n_bands) + " bands"
-                          : "section-heights gives " + std::to_string(p.ranges.size()) +
-                                " ranges") +
-        ": set sections=0 or to that count");
+            (p.ranges.empty()
+                 ? "the row map has " + std::to_string(n_bands) + " bands"
+                 : "section-heights gives " + std::to_string(p.ranges.size()) + " ranges"));
   sp.n_sections = wanted;
   sp.nozzle_offset_m = s.nozzle_offset;
   sp.valve_latency_ns = std::int64_t(s.valve_latency) * GST_MSECOND;
@@ -344,11 +357,18 @@ static GstFlowReturn gst_spray_control_transform_ip(GstBaseTransform *trans, Gst
   if (!mm || !gm || !GST_CLOCK_TIME_IS_VALID(running)) {
     if (!st->warned_missing) {
       st->warned_missing = true;
-      GST_ELEMENT_WARNING(self, STREAM, FORMAT,
-                          ("spraycontrol needs treemetrics' metrics meta (the rig's position), "
-                           "the geometry meta and timestamps: put it after treemetrics"),
-                          ("metrics meta %p, geometry meta %p, running time %" GST_TIME_FORMAT,
-                           (const void *)mm, (const void *)gm, GST_TIME_ARGS(running)));
+      static const char *const then =
+          ". Until it comes the sections keep their state, then take the fallback after "
+          "hold-time.";
+      if (!mm || !gm)
+        treestereo::gst::post_missing_meta(
+            GST_ELEMENT(self), GST_MESSAGE_WARNING, buf,
+            !mm ? treestereo::gst::kMetricsMeta : treestereo::gst::kGeometryMeta, nullptr, then);
+      else
+        GST_ELEMENT_WARNING(self, STREAM, FAILED,
+                            ("No timestamp on the buffer: spraycontrol needs the running time of "
+                             "each frame; give the buffers timestamps upstream."),
+                            ("buffer %" GST_PTR_FORMAT " has no valid running time", buf));
     }
     return GST_FLOW_OK; // no data: the hold callback runs out
   }
@@ -433,7 +453,9 @@ static bool write_timeline(GstSprayControl *self)
                      p.planner ? p.planner->params().n_sections : p.map->n_bands());
   } catch (const std::exception &e) {
     GST_ELEMENT_ERROR(self, RESOURCE, OPEN_WRITE,
-                      ("Could not write the valve timeline to \"%s\".", location.c_str()),
+                      ("Could not write the valve timeline to \"%s\": check that its folder "
+                       "exists, is writable and has room.",
+                       location.c_str()),
                       ("%s", e.what()));
     return false;
   }
@@ -477,11 +499,9 @@ static gboolean gst_spray_control_start(GstBaseTransform *trans)
   GST_OBJECT_UNLOCK(self);
   // The section heights are checked here so a typo stops the pipeline before it runs.
   try {
-    parse_section_heights(s.section_heights);
+    section_ranges(s);
   } catch (const std::exception &e) {
-    GST_ELEMENT_ERROR(self, LIBRARY, SETTINGS,
-                      ("spraycontrol: invalid section-heights: %s", e.what()),
-                      ("expected lo:hi pairs in m above the ground, comma separated"));
+    treestereo::gst::report_exception(GST_ELEMENT(self), e);
     return FALSE;
   }
   std::lock_guard<std::mutex> lock(self->state->plan_lock);

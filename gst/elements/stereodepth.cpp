@@ -265,22 +265,6 @@ static Settings snapshot(GstStereoDepth *self)
   return self->state->settings;
 }
 
-static void fill_stats(const DepthStats &s, GstTreeStereoDepthStats *out)
-{
-  out->n_points = guint(s.n_points);
-  out->n_valid = guint(s.n_valid);
-  out->dropped_disparity = guint(s.dropped_disparity);
-  out->dropped_range = guint(s.dropped_range);
-  out->dropped_outlier = guint(s.dropped_outlier);
-  out->median_z_mm = s.median_mm;
-  out->mad_z_mm = s.mad_mm;
-  out->p05_z_mm = s.p05_mm;
-  out->p95_z_mm = s.p95_mm;
-  out->accept_lo_mm = s.accept_lo_mm;
-  out->accept_hi_mm = s.accept_hi_mm;
-  out->dropped_zone = guint(s.dropped_zone);
-}
-
 /* Says once why densify=TRUE does nothing on this stream. The same causes stop the 3D canopy
  * (canopy_depth_of() leaves them to this one warning), so with canopy on it says both. */
 static void warn_no_densify(GstStereoDepth *self, const Settings &s, const char *why)
@@ -324,7 +308,7 @@ static std::vector<StereoMatch> grid_matches(GstStereoDepth *self, GstBuffer *bu
   }
   treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
   if (!frame.ok())
-    throw std::runtime_error("could not map the frame for densification");
+    throw BadInput("could not map the frame for densification: it is smaller than its caps say");
   const cv::Mat mat = frame.mat();
   DensifyParams p = s.grid;
   p.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
@@ -363,12 +347,12 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
     out.canopy.silhouette.mask = cv::Mat::zeros(g.view_size, CV_8U);
     DepthResult r = triangulate_matches(seeds, g, s.dense.filter);
     out.points = treestereo::gst::to_gst_points(r.points);
-    fill_stats(r.stats, &out.stats);
+    treestereo::gst::depth_stats_to_gst(r.stats, &out.stats);
     return true;
   }
   treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
   if (!frame.ok())
-    throw std::runtime_error("could not map the frame for the 3D canopy");
+    throw BadInput("could not map the frame for the 3D canopy: it is smaller than its caps say");
   const cv::Mat mat = frame.mat();
   p.grid.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
   const gint64 t0 = g_get_monotonic_time();
@@ -381,7 +365,7 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
         std::uint32_t(std::lround(m.xl));
   }
   out.points = treestereo::gst::to_gst_points(c.depth.points);
-  fill_stats(c.depth.stats, &out.stats);
+  treestereo::gst::depth_stats_to_gst(c.depth.stats, &out.stats);
   out.stats.n_grid = guint(c.matches.size() - c.n_seeds);
   const CanopyResult &cr = c.canopy;
   GST_DEBUG_OBJECT(self,
@@ -437,7 +421,7 @@ static void sparse_depth(GstStereoDepth *self, GstBuffer *buf, const GstTreeSter
                               std::uint32_t(std::lround(m.xl));
   }
   out.points = treestereo::gst::to_gst_points(r.points);
-  fill_stats(r.stats, &out.stats);
+  treestereo::gst::depth_stats_to_gst(r.stats, &out.stats);
   out.stats.n_grid = guint(grid.size());
 }
 
@@ -466,10 +450,14 @@ static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g,
 {
   State *st = self->state;
   if (!st->info_set)
-    throw std::runtime_error("mode=dense: no caps negotiated before the first buffer");
+    throw BadInput("stereodepth mode=dense got a buffer before its caps: the element upstream "
+                   "must send caps first.",
+                   "mode=dense: no caps negotiated before the first buffer");
   if (treestereo::gst::n_views_of(&st->info) != 2)
-    throw std::runtime_error("mode=dense needs side-by-side stereo frames "
-                             "(multiview-mode=side-by-side, as stereorectify produces)");
+    throw BadInput("stereodepth mode=dense needs side-by-side stereo frames "
+                   "(multiview-mode=side-by-side, as stereorectify produces): put stereorectify "
+                   "upstream, or use mode=sparse.",
+                   "mode=dense on a stream with one view per frame");
   cv::Rect box(cv::Point(0, 0), g.view_size);
   const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
   const GstTreeStereoVegetationView *lv = veg ? &veg->views[LEFT] : nullptr;
@@ -480,7 +468,7 @@ static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g,
   treestereo::gst::MappedSilhouette sil(lv); // no vegetation meta: no mask
   treestereo::gst::MappedFrame frame(&st->info, buf, GST_MAP_READ);
   if (!frame.ok())
-    throw std::runtime_error("could not map the frame for dense matching");
+    throw BadInput("could not map the frame for dense matching: it is smaller than its caps say");
   const treestereo::gst::PixelLayout layout =
       treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info));
   const cv::Mat mat = frame.mat();
@@ -489,7 +477,7 @@ static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g,
       treestereo::gst::gray_view(treestereo::gst::view_mat(mat, RIGHT, 2), layout);
   const DenseResult r = dense_depth(left, right, sil.get().mask, box, g, s.dense);
   out.points = treestereo::gst::to_gst_points(r.points);
-  fill_stats(r.stats, &out.stats);
+  treestereo::gst::depth_stats_to_gst(r.stats, &out.stats);
   out.box = r.box;
   if (!r.depth_mm.empty())
     out.depth_map = depth_map_buffer(r.depth_mm);
@@ -544,18 +532,15 @@ static GstFlowReturn gst_stereo_depth_transform_ip(GstBaseTransform *trans, GstB
   const Settings s = snapshot(self);
   const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
   if (!gm) {
-    GST_ELEMENT_ERROR(self, STREAM, FAILED,
-                      ("No stereo geometry on the buffer: stereodepth needs the geometry meta "
-                       "of stereorectify upstream."),
-                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoGeometryMeta", buf));
+    treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
+                                       treestereo::gst::kGeometryMeta);
     return GST_FLOW_ERROR;
   }
   const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
   if (s.mode == GST_STEREO_DEPTH_MODE_SPARSE && !mm) {
-    GST_ELEMENT_ERROR(self, STREAM, FAILED,
-                      ("No stereo matches on the buffer: stereodepth mode=sparse needs the "
-                       "matches meta of siftmatch upstream (or use mode=dense)."),
-                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoMatchesMeta", buf));
+    treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
+                                       treestereo::gst::kMatchesMeta, "stereodepth mode=sparse",
+                                       " (or use mode=dense).");
     return GST_FLOW_ERROR;
   }
   if (s.mode == GST_STEREO_DEPTH_MODE_SPARSE && s.densify &&

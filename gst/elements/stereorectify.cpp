@@ -158,15 +158,20 @@ static Settings snapshot(GstStereoRectify *self)
   return self->state->settings;
 }
 
-/* Loads the calibration named by the settings when it changed. Throws CalibrationError. */
+/* The message for a stereorectify without a calibration file. */
+static const char *const kNoCalibration =
+    "stereorectify has no calibration: set the calibration property to an OpenCV YAML/XML file "
+    "or a ROS pair 'left.yaml;right.yaml'.";
+
+/* Loads the calibration named by the settings when it changed. Throws CalibrationError, or
+ * BadSettings without a calibration. */
 static void ensure_calibration(GstStereoRectify *self, const Settings &s)
 {
   State *st = self->state;
   if (st->calib && st->calib_path == s.calibration)
     return;
   if (s.calibration.empty())
-    throw std::runtime_error("no calibration: set the 'calibration' property to an OpenCV "
-                             "YAML/XML file or a ROS pair 'left.yaml;right.yaml'");
+    throw BadSettings("the calibration property is empty");
   st->calib = load_calibration(s.calibration);
   st->calib_path = s.calibration;
   GST_INFO_OBJECT(self, "loaded calibration %s (%dx%d, baseline %.2f mm)", s.calibration.c_str(),
@@ -193,8 +198,8 @@ static gboolean gst_stereo_rectify_start(GstAggregator *agg)
   try {
     ensure_calibration(self, s);
   } catch (const std::exception &e) {
-    GST_ELEMENT_ERROR(self, RESOURCE, SETTINGS, ("%s", e.what()),
-                      ("calibration '%s'", s.calibration.c_str()));
+    treestereo::gst::report_exception(GST_ELEMENT(self), e,
+                                      s.calibration.empty() ? kNoCalibration : "");
     return FALSE;
   }
   return TRUE;
@@ -286,9 +291,13 @@ static gboolean gst_stereo_rectify_negotiated_src_caps(GstAggregator *agg, GstCa
   try {
     configure_rectification(self, s);
   } catch (const std::exception &e) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, ("%s", e.what()),
-                      ("input %s, calibration '%s'", caps_summary(&st->pad_info[LEFT]).c_str(),
-                       s.calibration.c_str()));
+    /* the frames' size does not fit the calibration: the caps are what cannot be used */
+    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
+                      ("stereorectify cannot rectify %s frames with the calibration \"%s\": "
+                       "give it frames of the calibration's size (or a pure scale of it), or a "
+                       "calibration made at this size.",
+                       caps_summary(&st->pad_info[LEFT]).c_str(), s.calibration.c_str()),
+                      ("%s", e.what()));
     st->out_configured = false;
     return FALSE;
   }
@@ -390,8 +399,8 @@ static GstFlowReturn compose_pair(GstStereoRectify *self, GstBuffer *in[2], GstC
     for (int v = 0; v < 2; v++) {
       treestereo::gst::MappedFrame src(&st->pad_info[v], in[v], GST_MAP_READ);
       if (!src.ok())
-        throw std::runtime_error(std::string("could not map the ") +
-                                 (v == LEFT ? "left" : "right") + " frame");
+        throw BadInput(std::string("could not map the ") + (v == LEFT ? "left" : "right") +
+                       " frame: it is smaller than its caps say");
       cv::Mat half = treestereo::gst::view_mat(dmat, v, 2);
       if (st->rect.rectify)
         rectify_view(st->rect, v, src.mat(), half);
@@ -507,8 +516,8 @@ static GstFlowReturn gst_stereo_rectify_aggregate(GstAggregator *agg, gboolean t
       try {
         configure_rectification(self, s);
       } catch (const std::exception &e) {
-        GST_ELEMENT_ERROR(self, RESOURCE, SETTINGS, ("%s", e.what()),
-                          ("calibration '%s'", s.calibration.c_str()));
+        treestereo::gst::report_exception(GST_ELEMENT(self), e,
+                                          s.calibration.empty() ? kNoCalibration : "");
         ret = GST_FLOW_ERROR;
         goto done;
       }

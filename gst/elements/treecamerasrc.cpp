@@ -678,10 +678,10 @@ static bool build_chain(GstTreeCameraSrc *self)
   if (camera.empty()) {
     if (caps)
       gst_caps_unref(caps);
-    GST_ELEMENT_ERROR(self, RESOURCE, NOT_FOUND,
+    GST_ELEMENT_ERROR(self, RESOURCE, SETTINGS,
                       ("No camera: set treecamerasrc's camera property to the camera's name, "
-                       "serial number or IP address (arv-tool-0.8 lists the cameras it sees)"),
-                      (nullptr));
+                       "serial number or IP address (arv-tool-0.8 lists the cameras it sees)."),
+                      ("the camera property is empty"));
     return false;
   }
   GstPluginFeature *arv = gst_registry_lookup_feature(gst_registry_get(), "aravissrc");

@@ -273,33 +273,16 @@ static Settings snapshot(GstTreeMetrics *self)
   return self->state->settings;
 }
 
-static std::vector<Point3> points_of(const GstTreeStereoPointsMeta *pm)
-{
-  std::vector<Point3> pts(pm->n_points);
-  for (guint i = 0; i < pm->n_points; i++) {
-    const GstTreeStereoPoint &p = pm->points[i];
-    pts[i].x = p.x;
-    pts[i].y = p.y;
-    pts[i].z = p.z;
-    pts[i].match_index = p.match_index;
-    pts[i].valid = p.valid != FALSE;
-  }
-  return pts;
-}
-
 /* Once per run: which upstream element is missing. The frame still gets tree-present=false. */
-static void warn_missing(GstTreeMetrics *self, bool veg, bool points)
+static void warn_missing(GstTreeMetrics *self, GstBuffer *buf, bool veg)
 {
   if (self->state->warned_missing)
     return;
   self->state->warned_missing = true;
-  GST_ELEMENT_WARNING(self, STREAM, FAILED,
-                      ("treemetrics has no %s on its buffers: put %s upstream. Reporting "
-                       "tree-present=false.",
-                       !veg ? "vegetation meta" : "3D points meta",
-                       !veg ? "exgsegment" : "stereodepth"),
-                      ("vegetation meta %s, points meta %s", veg ? "present" : "missing",
-                       points ? "present" : "missing"));
+  treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_WARNING, buf,
+                                     !veg ? treestereo::gst::kVegetationMeta
+                                          : treestereo::gst::kPointsMeta,
+                                     nullptr, ". Reporting tree-present=false.");
 }
 
 /* Posts one "treestereo-tree" message per record (no lock held) and, when a row map is asked
@@ -540,7 +523,8 @@ static bool write_row_map(GstTreeMetrics *self, const std::string &location)
       f << RowMap::kCsvHeader << '\n';
       f.flush();
       if (!f)
-        throw std::runtime_error("cannot write " + location + ": " + g_strerror(errno));
+        throw FileError(location, FileAccess::Write,
+                        "cannot write " + location + ": " + g_strerror(errno));
       GST_ELEMENT_WARNING(self, STREAM, FAILED,
                           ("The row map is empty (no 3D canopy, or no ground plane: see "
                            "stereodepth's ground=rig): "
@@ -550,7 +534,9 @@ static bool write_row_map(GstTreeMetrics *self, const std::string &location)
     }
   } catch (const std::exception &e) {
     GST_ELEMENT_ERROR(self, RESOURCE, OPEN_WRITE,
-                      ("Could not write the row map to \"%s\".", failed.c_str()),
+                      ("Could not write the row map to \"%s\": check that its folder exists, "
+                       "is writable and has room.",
+                       failed.c_str()),
                       ("%s", e.what()));
     return false;
   }
@@ -565,10 +551,8 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
   const Settings s = snapshot(self);
   const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
   if (!gm) {
-    GST_ELEMENT_ERROR(self, STREAM, FAILED,
-                      ("No stereo geometry on the buffer: treemetrics needs the geometry meta "
-                       "of stereorectify upstream."),
-                      ("buffer %" GST_PTR_FORMAT " has no GstTreeStereoGeometryMeta", buf));
+    treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
+                                       treestereo::gst::kGeometryMeta);
     return GST_FLOW_ERROR;
   }
   const GstTreeStereoVegetationMeta *veg = gst_buffer_get_tree_stereo_vegetation_meta(buf);
@@ -580,7 +564,7 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
       canopy ? &canopy->view : veg ? &veg->views[LEFT] : nullptr;
   const GstTreeStereoCanopyMode mode = canopy ? canopy->mode : GST_TREE_STEREO_CANOPY_COLOUR;
   if (!silhouette || !pm)
-    warn_missing(self, silhouette != nullptr, pm != nullptr);
+    warn_missing(self, buf, silhouette != nullptr);
 
   GstMetrics raw, smoothed;
   std::vector<TreeRecord> records;
@@ -594,7 +578,7 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
       p.round_limbs = s.round_limbs;
       p.extreme_points = int(s.extreme_points);
       const treestereo::gst::MappedSilhouette sil(silhouette);
-      m = compute_tree_metrics(sil.get(), points_of(pm), geometry, p);
+      m = compute_tree_metrics(sil.get(), treestereo::gst::points_from_meta(pm), geometry, p);
     }
     if (st->smoother.alpha() != s.smoothing)
       st->smoother = MetricsSmoother(s.smoothing);

@@ -248,9 +248,12 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
   State *st = self->state;
   const treestereo::gst::PixelLayout layout = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(in_info));
   if (!layout.color || GST_VIDEO_INFO_FORMAT(in_info) != GST_VIDEO_INFO_FORMAT(out_info)) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr),
-                      ("unsupported formats %" GST_PTR_FORMAT " -> %" GST_PTR_FORMAT, incaps,
-                       outcaps));
+    GST_ELEMENT_ERROR(
+        self, CORE, NEGOTIATION,
+        ("treeoverlay draws on colour frames of one format in and out, got %s: "
+         "put videoconvert before it.",
+         gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info))),
+        ("unsupported formats %" GST_PTR_FORMAT " -> %" GST_PTR_FORMAT, incaps, outcaps));
     return FALSE;
   }
   st->order = layout.order();
@@ -260,7 +263,9 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
   const int in_w = GST_VIDEO_INFO_WIDTH(in_info), out_w = GST_VIDEO_INFO_WIDTH(out_info);
   st->crop = st->in_views == 2 && out_w == in_w / 2;
   if ((!st->crop && out_w != in_w) || GST_VIDEO_INFO_HEIGHT(in_info) != GST_VIDEO_INFO_HEIGHT(out_info)) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr),
+    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
+                      ("treeoverlay gives out the frame's size, or its left view's with "
+                       "views=left: set caps downstream that fit."),
                       ("output %dx%d does not fit input %dx%d", out_w,
                        GST_VIDEO_INFO_HEIGHT(out_info), in_w, GST_VIDEO_INFO_HEIGHT(in_info)));
     return FALSE;
@@ -293,11 +298,8 @@ static OverlayScene scene_from_metas(GstBuffer *buf, int n_views)
   }
 
   if (const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf)) {
-    scene.matches.reserve(mm->n_matches);
-    for (guint i = 0; mm->matches && i < mm->n_matches; i++) {
-      const GstTreeStereoMatch &m = mm->matches[i];
-      scene.matches.push_back({m.xl, m.yl, m.xr, m.yr, m.score});
-    }
+    if (mm->matches)
+      scene.matches = treestereo::gst::matches_from_meta(mm);
     if (const GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(buf)) {
       scene.match_depth_m.assign(scene.matches.size(), 0.0);
       /* the trailing grid points of stereodepth's densification are no matches */

@@ -212,7 +212,15 @@ static void ensure_renderer(GstTreeTestSrc *self, const Settings &s)
   st->renderer = std::make_unique<SceneRenderer>(p);
   st->renderer_generation = s.generation;
   if (!s.calibration_out.empty()) {
-    save_calibration(st->renderer->calibration(), s.calibration_out);
+    try {
+      save_calibration(st->renderer->calibration(), s.calibration_out);
+    } catch (const CalibrationError &e) {
+      if (e.access() != FileAccess::None)
+        throw; // the file cannot be written: reported as such
+      throw BadSettings("treetestsrc's calibration-out must name an OpenCV YAML/XML file: end "
+                        "it in .yml, .yaml or .xml (optionally .gz).",
+                        e.what());
+    }
     GST_INFO_OBJECT(self, "wrote the rig's calibration to %s", s.calibration_out.c_str());
   }
 }

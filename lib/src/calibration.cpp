@@ -16,9 +16,10 @@
 
 namespace treestereo {
 
-CalibrationError::CalibrationError(std::string file, std::string key, const std::string &problem)
-    : std::runtime_error(file + (key.empty() ? std::string() : ": " + key) + ": " + problem),
-      file_(std::move(file)), key_(std::move(key))
+CalibrationError::CalibrationError(std::string file, std::string key, const std::string &problem,
+                                   FileAccess access)
+    : BadSettings(file + (key.empty() ? std::string() : ": " + key) + ": " + problem),
+      file_(std::move(file)), key_(std::move(key)), access_(access)
 {
 }
 
@@ -68,7 +69,7 @@ std::string read_checked(const std::string &file)
     // compressed file gets the same checks as a plain one before OpenCV's parser sees it.
     gzFile gz = gzopen(file.c_str(), "rb");
     if (!gz)
-      throw CalibrationError(file, "", "file is missing or cannot be read");
+      throw CalibrationError(file, "", "file is missing or cannot be read", FileAccess::Read);
     char buf[16384];
     int n = 0;
     while ((n = gzread(gz, buf, sizeof buf)) > 0 && text.size() <= kMaxCalibrationBytes)
@@ -81,7 +82,7 @@ std::string read_checked(const std::string &file)
   } else {
     std::ifstream in(file, std::ios::binary);
     if (!in)
-      throw CalibrationError(file, "", "file is missing or cannot be read");
+      throw CalibrationError(file, "", "file is missing or cannot be read", FileAccess::Read);
     std::ostringstream buf;
     buf << in.rdbuf();
     text = buf.str();
@@ -550,10 +551,11 @@ void save_calibration(const StereoCalibration &c, const std::string &path)
     fs.open(path, cv::FileStorage::WRITE);
   } catch (const cv::Exception &e) {
     throw CalibrationError(path, "",
-                           "cannot be written (" + std::string(detail::trim(e.err)) + ")");
+                           "cannot be written (" + std::string(detail::trim(e.err)) + ")",
+                           FileAccess::Write);
   }
   if (!fs.isOpened())
-    throw CalibrationError(path, "", "cannot be opened for writing");
+    throw CalibrationError(path, "", "cannot be opened for writing", FileAccess::Write);
   fs << "image_width" << c.image_size.width << "image_height" << c.image_size.height;
   fs << "M1" << c.M1 << "D1" << c.D1 << "M2" << c.M2 << "D2" << c.D2;
   fs << "R" << c.R << "T" << as_column(c.T);

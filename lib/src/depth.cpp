@@ -1,5 +1,6 @@
 #include "treestereo/depth.hpp"
 
+#include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/calib3d.hpp>
@@ -18,7 +19,7 @@ namespace {
 void check_geometry(const StereoGeometry &g)
 {
   if (!g.valid() || !std::isfinite(g.fx) || !std::isfinite(g.baseline_mm))
-    throw std::runtime_error("stereo geometry is not valid (fx=" + std::to_string(g.fx) +
+    throw BadInput("stereo geometry is not valid (fx=" + std::to_string(g.fx) +
                              " px, baseline=" + std::to_string(g.baseline_mm) +
                              " mm, view " + std::to_string(g.view_size.width) + "x" +
                              std::to_string(g.view_size.height) +
@@ -29,11 +30,11 @@ void check_params(const DepthParams &p)
 {
   if (!(p.min_depth_mm > 0.0) || !(p.max_depth_mm > p.min_depth_mm) ||
       !std::isfinite(p.max_depth_mm))
-    throw std::runtime_error("depth range [" + std::to_string(p.min_depth_mm) + ", " +
+    throw BadSettings("depth range [" + std::to_string(p.min_depth_mm) + ", " +
                              std::to_string(p.max_depth_mm) +
                              "] mm is empty: need 0 < min-depth < max-depth < infinity");
   if (!(p.outlier_k >= 0.0) || !(p.mad_floor_mm >= 0.0))
-    throw std::runtime_error("outlier k (" + std::to_string(p.outlier_k) + ") and MAD floor (" +
+    throw BadSettings("outlier k (" + std::to_string(p.outlier_k) + ") and MAD floor (" +
                              std::to_string(p.mad_floor_mm) + " mm) must be >= 0");
 }
 
@@ -207,11 +208,11 @@ void check_dense_input(const cv::Mat &left, const cv::Mat &right, const cv::Mat 
                              "same type (got OpenCV types " + std::to_string(t) + " and " +
                              std::to_string(right.type()) + ")");
   if (!mask.empty() && (mask.size() != g.view_size || mask.type() != CV_8UC1))
-    throw std::runtime_error("dense depth: the vegetation mask must be CV_8U of the view size");
+    throw BadInput("dense depth: the vegetation mask must be CV_8U of the view size");
   if (p.block_size < 1 || p.block_size % 2 == 0 || p.sample_step < 1)
-    throw std::runtime_error("dense depth: block size must be odd and >= 1, sample step >= 1");
+    throw BadSettings("dense depth: block size must be odd and >= 1, sample step >= 1");
   if (p.num_disparities < 0 || p.num_disparities % 16 != 0)
-    throw std::runtime_error("dense depth: num-disparities must be 0 (auto) or a positive "
+    throw BadSettings("dense depth: num-disparities must be 0 (auto) or a positive "
                              "multiple of 16, got " + std::to_string(p.num_disparities));
 }
 

@@ -1,6 +1,7 @@
 #include "treestereo/metrics.hpp"
 
 #include "treestereo/canopy.hpp"
+#include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/imgproc.hpp>
@@ -21,20 +22,20 @@ constexpr double kMmToM = 1e-3;
 void check_input(const Silhouette &s, const StereoGeometry &g, const MetricsParams &p)
 {
   if (!g.valid())
-    throw std::runtime_error("tree metrics: the stereo geometry is not valid (no focal length, "
+    throw BadInput("tree metrics: the stereo geometry is not valid (no focal length, "
                              "baseline or view size): rectify with a calibration first");
   if (s.present && !s.mask.empty() && (s.mask.size() != g.view_size || s.mask.type() != CV_8UC1))
-    throw std::runtime_error("tree metrics: the silhouette mask must be CV_8U of the view size " +
+    throw BadInput("tree metrics: the silhouette mask must be CV_8U of the view size " +
                              std::to_string(g.view_size.width) + "x" +
                              std::to_string(g.view_size.height));
   if (!(p.support_radius >= 0.0) || !(p.support_radius <= 1.0))
-    throw std::runtime_error("tree metrics: the support radius must be in [0, 1] of the view's "
+    throw BadSettings("tree metrics: the support radius must be in [0, 1] of the view's "
                              "width, got " + std::to_string(p.support_radius));
   if (p.n_bands < 1 || p.min_band_points < 1 || !(p.tangent_fraction > 0.0) ||
       !(p.tangent_fraction <= 0.5) || p.tangent_min_points < 5 || !(p.near_percentile >= 0.0) ||
       !(p.near_percentile <= 50.0) || !(p.edge_fraction > 0.0) || !(p.edge_fraction <= 0.5) ||
       !(p.band_depth_percentile >= 0.0) || !(p.band_depth_percentile <= 100.0))
-    throw std::runtime_error("tree metrics: parameters out of range (bands >= 1, min band points "
+    throw BadSettings("tree metrics: parameters out of range (bands >= 1, min band points "
                              ">= 1, near percentile in [0, 50], edge and tangent fraction in (0, "
                              "0.5], tangent min points >= 5, band "
                              "depth percentile in [0, 100])");
@@ -630,7 +631,7 @@ double band_fill(const cv::Mat &mask, int row0, int row1, int *left, int *right)
 MetricsSmoother::MetricsSmoother(double alpha) : alpha_(alpha)
 {
   if (!(alpha >= 0.0) || !(alpha < 1.0))
-    throw std::runtime_error("metrics smoothing alpha must be in [0, 1), got " +
+    throw BadSettings("metrics smoothing alpha must be in [0, 1), got " +
                              std::to_string(alpha));
 }
 

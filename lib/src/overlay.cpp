@@ -1,5 +1,6 @@
 #include "treestereo/overlay.hpp"
 
+#include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/imgproc.hpp>
@@ -317,17 +318,17 @@ void draw_overlay(cv::Mat &image, const ChannelOrder &order, const OverlayScene 
                   const OverlayStyle &style)
 {
   if (order.channels != 3 && order.channels != 4)
-    throw std::runtime_error("overlay: only packed 3- or 4-channel colour images can be drawn on");
+    throw BadInput("overlay: only packed 3- or 4-channel colour images can be drawn on");
   if (image.type() != CV_8UC(order.channels))
-    throw std::runtime_error("overlay: the image is not 8-bit with " +
+    throw BadInput("overlay: the image is not 8-bit with " +
                              std::to_string(order.channels) + " channels as its format says");
   for (int c : {order.r, order.g, order.b})
     if (c < 0 || c >= order.channels)
-      throw std::runtime_error("overlay: channel order out of range");
+      throw BadInput("overlay: channel order out of range");
   if (scene.n_views != 1 && scene.n_views != 2)
-    throw std::runtime_error("overlay: a frame holds 1 or 2 views");
+    throw BadInput("overlay: a frame holds 1 or 2 views");
   if (scene.n_views == 2 && image.cols % 2 != 0)
-    throw std::runtime_error("overlay: a side-by-side frame must have an even width, got " +
+    throw BadInput("overlay: a side-by-side frame must have an even width, got " +
                              std::to_string(image.cols));
   if (image.empty())
     return;

@@ -1,5 +1,6 @@
 #include "treestereo/rowmap.hpp"
 
+#include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -35,8 +36,7 @@ constexpr std::size_t kBlockMinPoints = 3;
 void require(bool ok, const char *field, const char *range)
 {
   if (!ok)
-    throw std::runtime_error(std::string("row map parameter ") + field + " out of range: " +
-                             range);
+    throw BadSettings(std::string("row map parameter ") + field + " out of range: " + range);
 }
 
 bool on_mask(const cv::Mat &mask, int u, int v)
@@ -87,9 +87,9 @@ void validate(const RowMapParams &p)
 GroundPlane rig_ground(const StereoGeometry &g, double camera_height_mm, double pitch_deg)
 {
   if (!(camera_height_mm > 0) || !std::isfinite(camera_height_mm))
-    throw std::runtime_error("rig_ground: camera_height_mm must be above 0");
+    throw BadSettings("rig_ground: camera_height_mm must be above 0");
   if (!(std::abs(pitch_deg) <= 80))
-    throw std::runtime_error("rig_ground: pitch_deg must be -80 to 80 degrees");
+    throw BadSettings("rig_ground: pitch_deg must be -80 to 80 degrees");
   GroundPlane p;
   const cv::Vec3d up_cam(0, -std::cos(pitch_deg * kDeg), -std::sin(pitch_deg * kDeg));
   p.normal = g.R1 * up_cam;
@@ -132,15 +132,14 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
                        const StereoGeometry &g, const GroundPlane &ground, double position_mm)
 {
   if (!g.valid())
-    throw std::runtime_error("row map: the stereo geometry is not valid");
+    throw BadInput("row map: the stereo geometry is not valid");
   if (mask.type() != CV_8U || mask.size() != g.view_size)
-    throw std::runtime_error("row map: the canopy mask must be CV_8U of the view size " +
-                             std::to_string(g.view_size.width) + "x" +
-                             std::to_string(g.view_size.height));
+    throw BadInput("row map: the canopy mask must be CV_8U of the view size " +
+                   std::to_string(g.view_size.width) + "x" + std::to_string(g.view_size.height));
   if (!ground.found)
-    throw std::runtime_error("row map: a ground plane is needed (select_canopy's or rig_ground())");
+    throw BadInput("row map: a ground plane is needed (select_canopy's or rig_ground())");
   if (!std::isfinite(position_mm))
-    throw std::runtime_error("row map: position_mm must be finite");
+    throw BadInput("row map: position_mm must be finite");
 
   const int W = g.view_size.width, H = g.view_size.height;
   const double fx = g.fx, fy = g.fy > 0 ? g.fy : g.fx, cx = g.cx[LEFT], cy = g.cy;
@@ -327,7 +326,8 @@ void RowMap::write_csv(const std::string &path) const
 {
   std::ofstream f(path);
   if (!f)
-    throw std::runtime_error("row map: cannot write " + path + ": " + std::strerror(errno));
+    throw FileError(path, FileAccess::Write,
+                    "row map: cannot write " + path + ": " + std::strerror(errno));
   f << kCsvHeader << '\n';
   const int nb = n_bands();
   for (long b = first_bin(); b <= last_bin(); ++b)
@@ -339,7 +339,8 @@ void RowMap::write_csv(const std::string &path) const
     }
   f.flush();
   if (!f)
-    throw std::runtime_error("row map: writing " + path + " failed: " + std::strerror(errno));
+    throw FileError(path, FileAccess::Write,
+                    "row map: writing " + path + " failed: " + std::strerror(errno));
 }
 
 namespace
@@ -396,12 +397,12 @@ cv::Size RowMap::render_size(const RowMapRenderParams &r) const
 cv::Mat RowMap::render(const std::vector<TreeRecord> &trees, const RowMapRenderParams &r) const
 {
   if (r.px_per_bin < 1 || r.px_per_bin > 100)
-    throw std::runtime_error("row map render parameter px_per_bin out of range: 1 to 100");
+    throw BadSettings("row map render parameter px_per_bin out of range: 1 to 100");
   if (!(r.px_per_m_height >= 10) || !(r.px_per_m_height <= 2000))
-    throw std::runtime_error("row map render parameter px_per_m_height out of range: 10 to 2000");
+    throw BadSettings("row map render parameter px_per_m_height out of range: 10 to 2000");
   if (!std::isfinite(r.distance_min_m) || !std::isfinite(r.distance_max_m) ||
       r.distance_min_m < 0 || r.distance_max_m < r.distance_min_m)
-    throw std::runtime_error("row map render parameter distance_min_m / distance_max_m out of "
+    throw BadSettings("row map render parameter distance_min_m / distance_max_m out of "
                              "range: 0 <= min <= max");
   const cv::Size size = render_size(r);
   if (double(size.width) * size.height > 2.5e8)
@@ -611,11 +612,12 @@ void write_picture(const std::string &path, const cv::Mat &img)
   try {
     ok = cv::imwrite(path, img);
   } catch (const cv::Exception &e) {
-    throw std::runtime_error("row map: cannot write " + path + ": " + e.what());
+    throw FileError(path, FileAccess::Write, "row map: cannot write " + path + ": " + e.what());
   }
   if (!ok)
-    throw std::runtime_error("row map: cannot write " + path +
-                             " (no such directory, no permission or an unknown extension)");
+    throw FileError(path, FileAccess::Write,
+                    "row map: cannot write " + path +
+                        " (no such directory, no permission or an unknown extension)");
 }
 
 } // namespace

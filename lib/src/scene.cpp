@@ -2,6 +2,7 @@
 
 #include "scene_materials.hpp"
 #include "scene_noise.hpp"
+#include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/calib3d.hpp>
@@ -30,7 +31,7 @@ void require(bool ok, const char *name, double value, const char *range)
     return;
   std::ostringstream s;
   s << "scene parameter " << name << " = " << value << " is out of range: " << range;
-  throw std::runtime_error(s.str());
+  throw BadSettings(s.str());
 }
 
 constexpr int kMaxWidth = 2592, kMaxHeight = 1944;
@@ -54,7 +55,7 @@ SceneKind scene_kind_from_name(const std::string &name)
   for (SceneKind k : {SceneKind::Lab, SceneKind::Orchard, SceneKind::Hedgerow})
     if (name == scene_kind_name(k))
       return k;
-  throw std::runtime_error("unknown scene '" + name + "': valid scenes are lab, orchard, hedgerow");
+  throw BadSettings("unknown scene '" + name + "': valid scenes are lab, orchard, hedgerow");
 }
 
 namespace {

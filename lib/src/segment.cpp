@@ -1,5 +1,7 @@
 #include "treestereo/segment.hpp"
 
+#include "treestereo/errors.hpp"
+
 #include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -188,8 +190,8 @@ VegIndex veg_index_from_name(const std::string &name)
   for (VegIndex i : all_veg_indices())
     if (name == veg_index_name(i))
       return i;
-  throw std::runtime_error("segment: unknown vegetation index '" + name +
-                           "' (use exg, exg-exr, exg-norm or exg-exr-norm)");
+  throw BadSettings("segment: unknown vegetation index '" + name +
+                    "' (use exg, exg-exr, exg-norm or exg-exr-norm)");
 }
 
 const char *keep_mode_name(KeepMode mode) { return mode == KeepMode::Largest ? "largest" : "all"; }
@@ -200,7 +202,7 @@ KeepMode keep_mode_from_name(const std::string &name)
     return KeepMode::Largest;
   if (name == "all")
     return KeepMode::All;
-  throw std::runtime_error("segment: unknown keep mode '" + name + "' (use largest or all)");
+  throw BadSettings("segment: unknown keep mode '" + name + "' (use largest or all)");
 }
 
 ChannelOrder channel_order_from_name(const std::string &f)
@@ -211,8 +213,8 @@ ChannelOrder channel_order_from_name(const std::string &f)
   for (const char *k : known)
     if (f == k)
       return {int(f.find('R')), int(f.find('G')), int(f.find('B')), int(f.size())};
-  throw std::runtime_error("segment: unsupported channel order '" + f +
-                           "' (use RGB, BGR, RGBx, BGRx, xRGB, xBGR, RGBA, BGRA, ARGB or ABGR)");
+  throw BadSettings("segment: unsupported channel order '" + f +
+                    "' (use RGB, BGR, RGBx, BGRx, xRGB, xBGR, RGBA, BGRA, ARGB or ABGR)");
 }
 
 void validate(const SegmentParams &p)
@@ -220,19 +222,19 @@ void validate(const SegmentParams &p)
   const ChannelOrder &o = p.order;
   if (o.r == o.g || o.r == o.b || o.g == o.b || std::min({o.r, o.g, o.b}) < 0 ||
       std::max({o.r, o.g, o.b}) > 3)
-    throw std::runtime_error("segment: channel order needs three distinct indices in 0..3");
+    throw BadSettings("segment: channel order needs three distinct indices in 0..3");
   if (p.dark_floor < 1 || p.dark_floor > 765)
-    throw std::runtime_error("segment: dark_floor must be in 1..765 (sum of R+G+B)");
+    throw BadSettings("segment: dark_floor must be in 1..765 (sum of R+G+B)");
   if (p.morph_size < 0 || p.morph_size > 255)
-    throw std::runtime_error("segment: morph_size must be in 0..255 px");
+    throw BadSettings("segment: morph_size must be in 0..255 px");
   if (!(p.min_area >= 0) || !std::isfinite(p.min_area))
-    throw std::runtime_error("segment: min_area must be a finite number >= 0");
+    throw BadSettings("segment: min_area must be a finite number >= 0");
   if (!(p.contour_epsilon >= 0) || p.contour_epsilon > 100)
-    throw std::runtime_error("segment: contour_epsilon must be in 0..100 px");
+    throw BadSettings("segment: contour_epsilon must be in 0..100 px");
   if (!std::isfinite(p.threshold) || (p.otsu_floor && !std::isfinite(*p.otsu_floor)))
-    throw std::runtime_error("segment: threshold and otsu_floor must be finite");
+    throw BadSettings("segment: threshold and otsu_floor must be finite");
   if (!(p.unmix_min_contrast >= 0) || p.unmix_min_contrast > 442)
-    throw std::runtime_error("segment: unmix_min_contrast must be in 0..442 (8-bit RGB levels)");
+    throw BadSettings("segment: unmix_min_contrast must be in 0..442 (8-bit RGB levels)");
 }
 
 int otsu_bin(const std::vector<int> &hist)

@@ -3,6 +3,7 @@
  * and the element message is checked against the discs. */
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
+#include "expect_error.h"
 #include <gst/video/video.h>
 #include <gst/treestereo/treestereo-meta.h>
 
@@ -502,6 +503,50 @@ GST_START_TEST (test_gray8_refused)
 
 GST_END_TEST;
 
+/* exgsegment needs no meta from upstream, and its properties refuse bad values themselves
+ * (test_invalid_property_values): what it can refuse at run time are caps and buffers. */
+
+/* A side-by-side frame too narrow for two views: CORE/NEGOTIATION saying what to check. */
+GST_START_TEST (test_narrow_side_by_side_is_a_negotiation_error)
+{
+  GstHarness *h = gst_harness_new ("exgsegment");
+  GstBus *bus = gst_bus_new ();
+
+  gst_element_set_bus (h->element, bus);
+  gst_harness_set_src_caps_str (h, "video/x-raw,format=RGB,width=1,height=48,framerate=7/1,"
+      "multiview-mode=side-by-side");
+  fail_if (gst_harness_push (h, gst_buffer_new_allocate (NULL, 4 * 48, NULL)) == GST_FLOW_OK);
+  expect_bus_error (bus, GST_MESSAGE_ERROR, GST_CORE_ERROR, GST_CORE_ERROR_NEGOTIATION,
+      "A side-by-side frame 1 px wide has no room for two views: check the caps upstream.",
+      "side-by-side");
+  gst_element_set_bus (h->element, NULL);
+  gst_object_unref (bus);
+  gst_harness_teardown (h);
+}
+
+GST_END_TEST;
+
+/* A buffer smaller than its caps say: STREAM/FAILED naming what to check, the sizes in the
+ * debug string. */
+GST_START_TEST (test_short_buffer_is_a_stream_error)
+{
+  GstHarness *h = gst_harness_new ("exgsegment");
+  GstBus *bus = gst_bus_new ();
+
+  gst_element_set_bus (h->element, bus);
+  gst_harness_set_src_caps_str (h, "video/x-raw,format=RGB,width=64,height=48,framerate=7/1");
+  fail_unless_equals_int (gst_harness_push (h, gst_buffer_new_allocate (NULL, 10, NULL)),
+      GST_FLOW_ERROR);
+  expect_bus_error (bus, GST_MESSAGE_ERROR, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED,
+      "exgsegment could not read the frame: the buffer is smaller than its caps say; check the "
+      "elements before it.", "buffer of 10 bytes for 64x48 RGB");
+  gst_element_set_bus (h->element, NULL);
+  gst_object_unref (bus);
+  gst_harness_teardown (h);
+}
+
+GST_END_TEST;
+
 static gboolean
 spec_refuses (GObject * obj, const gchar * name, const GValue * value)
 {
@@ -589,6 +634,8 @@ exgsegment_suite (void)
   tcase_add_test (tc, test_index_changes_while_playing);
   tcase_add_test (tc, test_no_pixel_copy_with_shared_input);
   tcase_add_test (tc, test_gray8_refused);
+  tcase_add_test (tc, test_narrow_side_by_side_is_a_negotiation_error);
+  tcase_add_test (tc, test_short_buffer_is_a_stream_error);
   tcase_add_test (tc, test_invalid_property_values);
   return s;
 }

@@ -10,6 +10,7 @@
 
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
+#include "expect_error.h"
 #include <gst/video/video.h>
 #include <gst/treestereo/treestereo-meta.h>
 
@@ -500,20 +501,10 @@ GST_START_TEST(test_missing_geometry_is_an_error)
                          GST_FLOW_ERROR);
   /* the same kind of error as stereodepth's and treemetrics': STREAM/FAILED, a sentence that
    * names what is missing and the element upstream that adds it, the meta's type in the debug */
-  GstMessage *msg = gst_bus_pop_filtered(rig.bus, GST_MESSAGE_ERROR);
-  fail_unless(msg != nullptr);
-  GError *err = nullptr;
-  gchar *debug = nullptr;
-  gst_message_parse_error(msg, &err, &debug);
-  fail_unless(g_error_matches(err, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED), "%s %d",
-              g_quark_to_string(err->domain), err->code);
-  fail_unless_equals_string(err->message, "No stereo geometry on the buffer: siftmatch needs the "
-                                          "geometry meta of stereorectify upstream.");
-  fail_unless(debug != nullptr && g_strrstr(debug, "has no GstTreeStereoGeometryMeta"), "%s",
-              debug ? debug : "(no debug)");
-  g_free(debug);
-  g_error_free(err);
-  gst_message_unref(msg);
+  expect_bus_error(rig.bus, GST_MESSAGE_ERROR, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED,
+                   "No stereo geometry on the buffer: siftmatch needs the geometry meta of "
+                   "stereorectify upstream.",
+                   "has no GstTreeStereoGeometryMeta");
   rig_teardown(rig);
 }
 GST_END_TEST;
@@ -526,13 +517,27 @@ GST_START_TEST(test_bad_depth_range_is_an_error)
   GstBuffer *in = side_by_side("GRAY8", l, r, 0);
   add_geometry(in, W, H, FX, W / 2.0, W / 2.0, BASELINE);
   fail_unless_equals_int(gst_harness_push(rig.h, in), GST_FLOW_ERROR);
-  GstMessage *msg = gst_bus_pop_filtered(rig.bus, GST_MESSAGE_ERROR);
-  fail_unless(msg != nullptr);
-  GError *err = nullptr;
-  gst_message_parse_error(msg, &err, nullptr);
-  fail_unless(g_strrstr(err->message, "max-depth") != nullptr, "%s", err->message);
-  g_error_free(err);
-  gst_message_unref(msg);
+  expect_bus_error(rig.bus, GST_MESSAGE_ERROR, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS,
+                   "siftmatch's max-depth must be above its min-depth: raise max-depth or lower "
+                   "min-depth.",
+                   "max-depth (1000.000000 mm) must be above min-depth (5000.000000 mm)");
+  rig_teardown(rig);
+}
+GST_END_TEST;
+
+/* min-disparity above max-disparity: a settings error naming both. */
+GST_START_TEST(test_empty_disparity_range_is_a_settings_error)
+{
+  cv::Mat l, r;
+  make_pair(D_TRUE, l, r);
+  Rig rig = rig_setup("GRAY8", W, H, "min-disparity=60 max-disparity=20");
+  GstBuffer *in = side_by_side("GRAY8", l, r, 0);
+  add_geometry(in, W, H, FX, W / 2.0, W / 2.0, BASELINE);
+  fail_unless_equals_int(gst_harness_push(rig.h, in), GST_FLOW_ERROR);
+  expect_bus_error(rig.bus, GST_MESSAGE_ERROR, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS,
+                   "siftmatch's disparity range is empty: set min-disparity below "
+                   "max-disparity, or min-depth and max-depth that leave a range.",
+                   "min 60.000000 px > max 20.000000 px");
   rig_teardown(rig);
 }
 GST_END_TEST;
@@ -545,13 +550,10 @@ GST_START_TEST(test_mono_stream_is_an_error)
   GstBuffer *in = side_by_side("GRAY8", l, r, 0);
   add_geometry(in, W, H, FX, W / 2.0, W / 2.0, BASELINE);
   fail_unless(gst_harness_push(rig.h, in) != GST_FLOW_OK);
-  GstMessage *msg = gst_bus_pop_filtered(rig.bus, GST_MESSAGE_ERROR);
-  fail_unless(msg != nullptr);
-  GError *err = nullptr;
-  gst_message_parse_error(msg, &err, nullptr);
-  fail_unless(g_strrstr(err->message, "side-by-side") != nullptr, "%s", err->message);
-  g_error_free(err);
-  gst_message_unref(msg);
+  expect_bus_error(rig.bus, GST_MESSAGE_ERROR, GST_CORE_ERROR, GST_CORE_ERROR_NEGOTIATION,
+                   "siftmatch needs side-by-side stereo frames (multiview-mode=side-by-side) "
+                   "from stereorectify",
+                   "caps");
   rig_teardown(rig);
 }
 GST_END_TEST;
@@ -622,6 +624,7 @@ static Suite *siftmatch_suite(void)
   tcase_add_test(tc, test_property_ranges);
   tcase_add_test(tc, test_missing_geometry_is_an_error);
   tcase_add_test(tc, test_bad_depth_range_is_an_error);
+  tcase_add_test(tc, test_empty_disparity_range_is_a_settings_error);
   tcase_add_test(tc, test_mono_stream_is_an_error);
   tcase_add_test(tc, test_middlebury_jadeplant);
   return s;

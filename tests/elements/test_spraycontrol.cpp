@@ -18,6 +18,7 @@
 
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
+#include "expect_error.h"
 #include <gst/check/gsttestclock.h>
 #include <gst/treestereo/treestereo-meta.h>
 #include <glib/gstdio.h>
@@ -368,14 +369,11 @@ GST_START_TEST(test_bad_section_heights_is_a_named_error)
   gst_element_set_bus(e, bus);
   g_object_set(e, "section-heights", "0.4:0.7,0.7-1.0", nullptr);
   fail_unless_equals_int(gst_element_set_state(e, GST_STATE_PLAYING), GST_STATE_CHANGE_FAILURE);
-  GstMessage *msg = gst_bus_pop_filtered(bus, GST_MESSAGE_ERROR);
-  fail_unless(msg != nullptr);
-  GError *err = nullptr;
-  gst_message_parse_error(msg, &err, nullptr);
-  fail_unless(strstr(err->message, "section-heights") != nullptr, "%s", err->message);
-  fail_unless(strstr(err->message, "0.7-1.0") != nullptr, "%s", err->message);
-  g_error_free(err);
-  gst_message_unref(msg);
+  expect_bus_error(bus, GST_MESSAGE_ERROR, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS,
+                   "spraycontrol's section-heights cannot be used: give lo:hi pairs in m above "
+                   "the ground, comma separated (e.g. 0.4:0.7,0.7:1.0), or an empty string for "
+                   "the row map's bands.",
+                   "invalid section-heights \"0.4:0.7,0.7-1.0\"");
   gst_element_set_state(e, GST_STATE_NULL);
   gst_element_set_bus(e, nullptr);
   gst_object_unref(bus);
@@ -384,12 +382,27 @@ GST_START_TEST(test_bad_section_heights_is_a_named_error)
   // A section count that matches neither the bands nor the ranges: an error at the first frame.
   Harness r = harness("sections=3");
   fail_unless_equals_int(gst_harness_push(r.h, frame(0, kP0, {{0.0, 1.0}})), GST_FLOW_ERROR);
-  msg = gst_bus_pop_filtered(r.bus, GST_MESSAGE_ERROR);
-  fail_unless(msg != nullptr);
-  gst_message_parse_error(msg, &err, nullptr);
-  fail_unless(strstr(err->message, "sections=3") != nullptr, "%s", err->message);
-  g_error_free(err);
-  gst_message_unref(msg);
+  expect_bus_error(r.bus, GST_MESSAGE_ERROR, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS,
+                   "spraycontrol's sections does not match its section count: set sections=0 or "
+                   "to that count.",
+                   "sections=3 but the row map has 4 bands");
+  harness_free(r);
+}
+GST_END_TEST;
+
+/* A buffer without treemetrics' metrics meta: one warning naming it, the buffer passes. */
+GST_START_TEST(test_missing_metrics_meta_is_a_warning)
+{
+  Harness r = harness("");
+  GstBuffer *in = gst_buffer_new_allocate(nullptr, kW * kH, nullptr);
+  GST_BUFFER_PTS(in) = 0;
+  fail_unless_equals_int(gst_harness_push(r.h, in), GST_FLOW_OK);
+  gst_buffer_unref(gst_harness_pull(r.h));
+  expect_bus_error(r.bus, GST_MESSAGE_WARNING, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED,
+                   "No rig position on the buffer: spraycontrol needs the metrics meta of "
+                   "treemetrics upstream. Until it comes the sections keep their state, then "
+                   "take the fallback after hold-time.",
+                   "has no GstTreeStereoMetricsMeta");
   harness_free(r);
 }
 GST_END_TEST;
@@ -452,15 +465,10 @@ GST_START_TEST(test_timeline_picture_at_eos)
     gst_buffer_unref(gst_harness_pull(bad.h));
   }
   gst_harness_push_event(bad.h, gst_event_new_eos());
-  GstMessage *m = gst_bus_pop_filtered(bad.bus, GST_MESSAGE_ERROR);
-  fail_unless(m != nullptr, "no error for an unwritable timeline-location");
-  GError *err = nullptr;
-  gst_message_parse_error(m, &err, nullptr);
-  fail_unless(g_error_matches(err, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_WRITE), "%s",
-              err->message);
-  fail_unless(strstr(err->message, "/nonexistent-dir/timeline.png") != nullptr, "%s", err->message);
-  g_error_free(err);
-  gst_message_unref(m);
+  expect_bus_error(bad.bus, GST_MESSAGE_ERROR, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_WRITE,
+                   "Could not write the valve timeline to \"/nonexistent-dir/timeline.png\": "
+                   "check that its folder exists, is writable and has room.",
+                   "/nonexistent-dir/timeline.png");
   harness_free(bad);
 }
 GST_END_TEST
@@ -477,6 +485,7 @@ static Suite *spraycontrol_suite(void)
   tcase_add_test(tc, test_fail_safe_after_hold_time);
   tcase_add_test(tc, test_fail_safe_on_a_gap_in_the_running_times);
   tcase_add_test(tc, test_bad_section_heights_is_a_named_error);
+  tcase_add_test(tc, test_missing_metrics_meta_is_a_warning);
   tcase_add_test(tc, test_section_message_round_trip);
   tcase_add_test(tc, test_timeline_picture_at_eos);
   return s;

@@ -13,6 +13,7 @@
 #include "element_props.h"
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
+#include "expect_error.h"
 #include <gst/treestereo/treestereo-meta.h>
 #include <gst/video/video.h>
 
@@ -255,17 +256,12 @@ GST_START_TEST(test_sparse_no_matches_is_empty_not_nan)
 }
 GST_END_TEST;
 
-static void expect_error_naming(Rig &r, GstBuffer *in, const char *name)
+/* Pushes @in, expects GST_FLOW_ERROR and the error (domain, code, message, debug part). */
+static void expect_push_error(Rig &r, GstBuffer *in, GQuark domain, gint code, const char *message,
+                              const char *debug_part)
 {
   fail_unless_equals_int(gst_harness_push(r.h, in), GST_FLOW_ERROR);
-  GstMessage *msg = gst_bus_pop_filtered(r.bus, GST_MESSAGE_ERROR);
-  fail_unless(msg != nullptr);
-  GError *err = nullptr;
-  gst_message_parse_error(msg, &err, nullptr);
-  fail_unless(strstr(err->message, name) != nullptr, "error '%s' does not name %s",
-              err->message, name);
-  g_error_free(err);
-  gst_message_unref(msg);
+  expect_bus_error(r.bus, GST_MESSAGE_ERROR, domain, code, message, debug_part);
 }
 
 GST_START_TEST(test_missing_metas_are_errors_naming_upstream)
@@ -273,24 +269,33 @@ GST_START_TEST(test_missing_metas_are_errors_naming_upstream)
   const Geometry g;
   {
     Rig r = rig_new(kSbsCaps, nullptr);
-    expect_error_naming(r, gst_buffer_new(), "stereorectify");
+    expect_push_error(r, gst_buffer_new(), GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED,
+                      "No stereo geometry on the buffer: stereodepth needs the geometry meta of "
+                      "stereorectify upstream.",
+                      "has no GstTreeStereoGeometryMeta");
     rig_free(r);
   }
   {
     Rig r = rig_new(kSbsCaps, nullptr);
     GstBuffer *in = gst_buffer_new();
     fill_geometry(in, g);
-    expect_error_naming(r, in, "siftmatch");
+    expect_push_error(r, in, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED,
+                      "No stereo matches on the buffer: stereodepth mode=sparse needs the "
+                      "matches meta of siftmatch upstream (or use mode=dense).",
+                      "has no GstTreeStereoMatchesMeta");
     rig_free(r);
   }
   {
-    /* min-depth above max-depth: lib's message reaches the bus */
+    /* min-depth above max-depth: lib's BadSettings, its text in the debug string */
     Rig r = rig_new(kSbsCaps, "min-depth=5000 max-depth=1000");
     GstBuffer *in = gst_buffer_new();
     fill_geometry(in, g);
     GstTreeStereoMatch m = {700, 500, 680, 500, 0};
     gst_buffer_add_tree_stereo_matches_meta(in, GST_TREE_STEREO_MATCH_COSINE_NORM, 1, 1, &m, 1);
-    expect_error_naming(r, in, "depth");
+    expect_push_error(r, in, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS,
+                      "The settings of stereodepth cannot be used: change the property the debug "
+                      "detail names.",
+                      "need 0 < min-depth < max-depth");
     rig_free(r);
   }
   {
@@ -299,7 +304,11 @@ GST_START_TEST(test_missing_metas_are_errors_naming_upstream)
                     "mode=dense");
     GstBuffer *in = gst_buffer_new_allocate(nullptr, 1296 * 972, nullptr);
     fill_geometry(in, g);
-    expect_error_naming(r, in, "side-by-side");
+    expect_push_error(r, in, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED,
+                      "stereodepth mode=dense needs side-by-side stereo frames "
+                      "(multiview-mode=side-by-side, as stereorectify produces): put "
+                      "stereorectify upstream, or use mode=sparse.",
+                      "one view per frame");
     rig_free(r);
   }
 }
@@ -1000,6 +1009,8 @@ GST_START_TEST(test_canopy_settings_that_cannot_run_are_errors)
                 g_quark_to_string(err->domain));
     fail_unless_equals_int(err->code, GST_RESOURCE_ERROR_SETTINGS);
     fail_unless(strstr(err->message, c.names) != nullptr, "%s: %s", c.props, err->message);
+    fail_unless(dbg != nullptr && strstr(dbg, "canopy settings: ground") != nullptr, "%s: %s",
+                c.props, dbg);
     fail_unless(g_str_has_prefix(GST_OBJECT_NAME(GST_MESSAGE_SRC(r.error)), "stereodepth"));
     g_error_free(err);
     g_free(dbg);

@@ -262,8 +262,42 @@ GST_START_TEST (test_missing_calibration_fails_state_change)
   msg = gst_bus_pop_filtered (bus, GST_MESSAGE_ERROR);
   fail_unless (msg != NULL);
   gst_message_parse_error (msg, &err, NULL);
-  fail_unless (strstr (err->message, "/nonexistent/calib.yml") != NULL, "%s", err->message);
+  fail_unless (g_error_matches (err, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_READ), "%s",
+      err->message);
+  fail_unless_equals_string (err->message, "Could not read the calibration "
+      "\"/nonexistent/calib.yml\": check the path in the calibration property.");
   g_error_free (err);
+  gst_message_unref (msg);
+  gst_element_set_state (e, GST_STATE_NULL);
+  gst_element_set_bus (e, NULL);
+  gst_object_unref (bus);
+  gst_object_unref (e);
+}
+
+GST_END_TEST;
+
+/* No calibration property: RESOURCE/SETTINGS saying what to set. */
+GST_START_TEST (test_no_calibration_is_a_settings_error)
+{
+  GstElement *e = gst_element_factory_make ("stereorectify", NULL);
+  GstBus *bus = gst_bus_new ();
+  GstMessage *msg;
+  GError *err = NULL;
+  gchar *dbg = NULL;
+
+  gst_element_set_bus (e, bus);
+  fail_unless_equals_int (gst_element_set_state (e, GST_STATE_PAUSED),
+      GST_STATE_CHANGE_FAILURE);
+  msg = gst_bus_pop_filtered (bus, GST_MESSAGE_ERROR);
+  fail_unless (msg != NULL);
+  gst_message_parse_error (msg, &err, &dbg);
+  fail_unless (g_error_matches (err, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS), "%s",
+      err->message);
+  fail_unless_equals_string (err->message, "stereorectify has no calibration: set the "
+      "calibration property to an OpenCV YAML/XML file or a ROS pair 'left.yaml;right.yaml'.");
+  fail_unless (g_str_has_suffix (dbg, "\nthe calibration property is empty"), "%s", dbg);
+  g_error_free (err);
+  g_free (dbg);
   gst_message_unref (msg);
   gst_element_set_state (e, GST_STATE_NULL);
   gst_element_set_bus (e, NULL);
@@ -294,8 +328,9 @@ example_text_with (const gchar * from, const gchar * to)
   return out;
 }
 
-/* Sets @spec as calibration, expects READY->PAUSED to fail and an ERROR whose text holds
- * @file and @problem. */
+/* Sets @spec as calibration, expects READY->PAUSED to fail and an ERROR: RESOURCE/OPEN_READ
+ * with the read advice for a file that cannot be read, else RESOURCE/SETTINGS with the content
+ * advice; the message names @file, the debug string @problem. */
 static void
 expect_calibration_error (const gchar * spec, const gchar * file, const gchar * problem)
 {
@@ -304,6 +339,7 @@ expect_calibration_error (const gchar * spec, const gchar * file, const gchar * 
   GstMessage *msg;
   GError *err = NULL;
   gchar *dbg = NULL;
+  const gboolean unreadable = strstr (problem, "cannot be read") != NULL;
 
   gst_element_set_bus (e, bus);
   g_object_set (e, "calibration", spec, NULL);
@@ -313,13 +349,26 @@ expect_calibration_error (const gchar * spec, const gchar * file, const gchar * 
   msg = gst_bus_pop_filtered (bus, GST_MESSAGE_ERROR);
   fail_unless (msg != NULL, "no error message for %s", spec);
   gst_message_parse_error (msg, &err, &dbg);
-  GST_INFO ("%s -> %s", spec, err->message);
-  fail_unless (g_error_matches (err, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS),
-      "%s: not a RESOURCE/SETTINGS error: %s", spec, err->message);
+  GST_INFO ("%s -> %s | %s", spec, err->message, dbg);
+  if (unreadable) {
+    fail_unless (g_error_matches (err, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_OPEN_READ),
+        "%s: not a RESOURCE/OPEN_READ error: %s", spec, err->message);
+    fail_unless (g_str_has_prefix (err->message, "Could not read the calibration \""),
+        "%s", err->message);
+    fail_unless (g_str_has_suffix (err->message,
+            "\": check the path in the calibration property."), "%s", err->message);
+  } else {
+    fail_unless (g_error_matches (err, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS),
+        "%s: not a RESOURCE/SETTINGS error: %s", spec, err->message);
+    fail_unless (g_str_has_prefix (err->message, "The calibration \""), "%s", err->message);
+    fail_unless (g_str_has_suffix (err->message, "\" cannot be used: give stereorectify an "
+            "OpenCV YAML/XML calibration (M1 D1 M2 D2 R T) or a ROS pair "
+            "'left.yaml;right.yaml'."), "%s", err->message);
+  }
   fail_unless (strstr (err->message, file) != NULL, "file %s not named: %s", file,
       err->message);
-  fail_unless (strstr (err->message, problem) != NULL, "problem '%s' not named: %s", problem,
-      err->message);
+  fail_unless (dbg != NULL && strstr (dbg, problem) != NULL, "problem '%s' not in the debug "
+      "string: %s", problem, dbg);
   g_error_free (err);
   g_free (dbg);
   gst_message_unref (msg);
@@ -429,14 +478,29 @@ GST_START_TEST (test_calibration_for_other_aspect_fails_at_caps)
   Rig rig;
   gchar *text;
 
+  GstMessage *msg;
+  GError *err = NULL;
+
   rig_setup (&rig, "RGB", 1280, 720, 1280, 720, TRUE);
   gst_harness_push (rig.left, frame (1280, 720, 3, 1, 0));
   gst_harness_push (rig.right, frame (1280, 720, 3, 1, 0));
-  text = wait_error (rig.bus);
-  fail_unless (strstr (text, "2592x1944") != NULL && strstr (text, "1280x720") != NULL,
-      "both sizes not named: %s", text);
-  fail_unless (strstr (text, "calibration-mer500.yml") != NULL, "file not named: %s", text);
+  msg = gst_bus_timed_pop_filtered (rig.bus, 5 * GST_SECOND, GST_MESSAGE_ERROR);
+  fail_unless (msg != NULL, "no error posted");
+  gst_message_parse_error (msg, &err, &text);
+  /* the caps are what does not fit: CORE/NEGOTIATION, the message says what to change and the
+   * debug string has lib's reason with both sizes */
+  fail_unless (g_error_matches (err, GST_CORE_ERROR, GST_CORE_ERROR_NEGOTIATION), "%s",
+      err->message);
+  fail_unless (g_str_has_prefix (err->message, "stereorectify cannot rectify RGB 1280x720 "
+          "frames with the calibration \""), "%s", err->message);
+  fail_unless (g_str_has_suffix (err->message, "calibration-mer500.yml\": give it frames of "
+          "the calibration's size (or a pure scale of it), or a calibration made at this "
+          "size."), "%s", err->message);
+  fail_unless (text != NULL && strstr (text, "2592x1944") != NULL
+      && strstr (text, "1280x720") != NULL, "both sizes not named: %s", text);
+  g_error_free (err);
   g_free (text);
+  gst_message_unref (msg);
   rig_teardown (&rig);
 }
 
@@ -491,6 +555,7 @@ stereorectify_suite (void)
   tcase_add_test (tc, test_wrong_size_names_both);
   tcase_add_test (tc, test_left_right_differ);
   tcase_add_test (tc, test_missing_calibration_fails_state_change);
+  tcase_add_test (tc, test_no_calibration_is_a_settings_error);
   tcase_add_test (tc, test_passthrough_keeps_pixels);
   tcase_add_test (tc, test_bad_calibration_files_fail_state_change);
   tcase_add_test (tc, test_calibration_for_other_aspect_fails_at_caps);

@@ -3,6 +3,7 @@
  * agree. */
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
+#include "expect_error.h"
 #include <gst/video/video.h>
 #include <gst/treestereo/treestereo-meta.h>
 
@@ -436,6 +437,27 @@ GST_START_TEST(test_layers_switch_off)
 }
 GST_END_TEST;
 
+/* treeoverlay draws whatever metas are there (no meta is required), and its properties refuse
+ * bad values themselves: what it can refuse at run time is a frame. A side-by-side frame of odd
+ * width has no two equal views: lib's BadInput, STREAM/FAILED. */
+GST_START_TEST(test_odd_side_by_side_is_a_stream_error)
+{
+  GstHarness *h = harness("treeoverlay", "RGB", 2 * VW + 1, true);
+  GstBus *bus = gst_bus_new();
+  gst_element_set_bus(h->element, bus);
+  GstBuffer *in =
+      gst_buffer_new_allocate(nullptr, gsize(GST_ROUND_UP_4((2 * VW + 1) * 3)) * H, nullptr);
+  fail_unless_equals_int(gst_harness_push(h, in), GST_FLOW_ERROR);
+  expect_bus_error(bus, GST_MESSAGE_ERROR, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED,
+                   "treeoverlay cannot use what arrived from upstream: check the elements "
+                   "before it.",
+                   "overlay: a side-by-side frame must have an even width");
+  gst_element_set_bus(h->element, nullptr);
+  gst_object_unref(bus);
+  gst_harness_teardown(h);
+}
+GST_END_TEST;
+
 static Suite *treeoverlay_suite(void)
 {
   Suite *s = suite_create("treeoverlay");
@@ -449,6 +471,7 @@ static Suite *treeoverlay_suite(void)
   tcase_add_test(tc, test_mono_input_drawn_in_place_with_views_left);
   tcase_add_test(tc, test_bgrx_and_rgb_agree);
   tcase_add_test(tc, test_layers_switch_off);
+  tcase_add_test(tc, test_odd_side_by_side_is_a_stream_error);
   tcase_add_test(tc, test_rejected_vegetation_is_tinted);
   return s;
 }

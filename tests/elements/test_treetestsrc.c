@@ -2,6 +2,7 @@
  * rig (same seed = same scene), property ranges, the orchard scene. */
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
+#include "expect_error.h"
 #include <gst/video/video.h>
 #include <gst/treestereo/treestereo-meta.h>
 
@@ -257,25 +258,51 @@ GST_START_TEST (test_bad_row_parameters)
   GstHarness *h = gst_harness_new_parse ("treetestsrc scene=orchard row-gap-min=0.6 "
       "row-gap-max=0.2");
   GstBus *bus = gst_bus_new ();
-  GstMessage *msg;
-  GError *err = NULL;
-  gchar *debug = NULL;
 
   gst_element_set_bus (h->element, bus);
   gst_harness_set_sink_caps_str (h,
       "video/x-raw,format=RGB,width=160,height=120,framerate=7/1");
   gst_harness_play (h);
-  msg = gst_bus_timed_pop_filtered (bus, 5 * GST_SECOND, GST_MESSAGE_ERROR);
-  fail_unless (msg != NULL, "no error");
-  gst_message_parse_error (msg, &err, &debug);
-  fail_unless (strstr (err->message, "row_gap_max_mm") != NULL ||
-      (debug && strstr (debug, "row_gap_max_mm") != NULL), "%s / %s", err->message, debug);
-  g_error_free (err);
-  g_free (debug);
-  gst_message_unref (msg);
+  /* lib's BadSettings: RESOURCE/SETTINGS, its text (naming the field) in the debug string */
+  expect_bus_error (bus, GST_MESSAGE_ERROR, GST_RESOURCE_ERROR, GST_RESOURCE_ERROR_SETTINGS,
+      "The settings of treetestsrc cannot be used: change the property the debug detail "
+      "names.", "row_gap_max_mm");
   gst_element_set_bus (h->element, NULL);
   gst_object_unref (bus);
   gst_harness_teardown (h);
+}
+
+GST_END_TEST;
+
+/* Runs treetestsrc with @props to its first frame and expects the calibration-out error. */
+static void
+expect_calibration_out_error (const gchar * props, gint code, const gchar * message,
+    const gchar * debug_part)
+{
+  GstHarness *h = gst_harness_new_parse (props);
+  GstBus *bus = gst_bus_new ();
+
+  gst_element_set_bus (h->element, bus);
+  gst_harness_set_sink_caps_str (h,
+      "video/x-raw,format=RGB,width=160,height=120,framerate=7/1");
+  gst_harness_play (h);
+  expect_bus_error (bus, GST_MESSAGE_ERROR, GST_RESOURCE_ERROR, code, message, debug_part);
+  gst_element_set_bus (h->element, NULL);
+  gst_object_unref (bus);
+  gst_harness_teardown (h);
+}
+
+/* A calibration-out that cannot be written, and one that names no calibration format. */
+GST_START_TEST (test_bad_calibration_out)
+{
+  expect_calibration_out_error ("treetestsrc calibration-out=/nonexistent-dir/rig.yml",
+      GST_RESOURCE_ERROR_OPEN_WRITE, "Could not write the calibration to "
+      "\"/nonexistent-dir/rig.yml\": check that its folder exists and is writable.",
+      "/nonexistent-dir/rig.yml");
+  expect_calibration_out_error ("treetestsrc calibration-out=/tmp/rig.txt",
+      GST_RESOURCE_ERROR_SETTINGS, "treetestsrc's calibration-out must name an OpenCV "
+      "YAML/XML file: end it in .yml, .yaml or .xml (optionally .gz).",
+      "unknown extension");
 }
 
 GST_END_TEST;
@@ -294,6 +321,7 @@ treetestsrc_suite (void)
   tcase_add_test (tc, test_orchard_scene);
   tcase_add_test (tc, test_scene_properties);
   tcase_add_test (tc, test_bad_row_parameters);
+  tcase_add_test (tc, test_bad_calibration_out);
   return s;
 }
 

@@ -365,6 +365,29 @@ TEST(CalibrationErrors, FileMissing)
   expect_error([&] { load_calibration(dir.file("calib.yml")); }, "calib.yml", "", "is a directory");
 }
 
+// The element layer maps the error's type and access to a GStreamer code: a file that cannot be
+// read or written says so, a file that was read but cannot be used is a setting's error.
+TEST(CalibrationErrors, TypeAndAccess)
+{
+  TempDir dir;
+  auto access_of = [](const std::function<void()> &f) {
+    try {
+      f();
+    } catch (const BadSettings &e) {
+      const auto *c = dynamic_cast<const CalibrationError *>(&e);
+      EXPECT_NE(c, nullptr) << e.what();
+      return c ? c->access() : FileAccess::None;
+    }
+    ADD_FAILURE() << "no error";
+    return FileAccess::None;
+  };
+  EXPECT_EQ(access_of([&] { load_calibration(dir.file("nothere.yml")); }), FileAccess::Read);
+  EXPECT_EQ(access_of([&] { save_calibration(make_rig(), dir.file("no/such/dir.yml")); }),
+            FileAccess::Write);
+  std::ofstream(dir.file("words.yml")) << "just some words\n";
+  EXPECT_EQ(access_of([&] { load_calibration(dir.file("words.yml")); }), FileAccess::None);
+}
+
 TEST(CalibrationErrors, WrongFormat)
 {
   TempDir dir;

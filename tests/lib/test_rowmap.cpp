@@ -2,6 +2,7 @@
 // height) and depth, a 10 cm gap between two of them, seen by a level camera 950 mm above the
 // ground while the rig drives by. Masks and points are cast exactly; the map must give the
 // cells' truth.
+#include "treestereo/errors.hpp"
 #include "treestereo/rowmap.hpp"
 #include "treestereo/spray.hpp"
 
@@ -404,8 +405,10 @@ TEST(RowMap, ErrorsNameThePath)
       else
         map.write_png(bad + ext);
       FAIL() << "no error for " << ext;
-    } catch (const std::runtime_error &e) {
+    } catch (const FileError &e) {
       EXPECT_NE(std::string(e.what()).find(bad + ext), std::string::npos) << e.what();
+      EXPECT_EQ(e.path(), bad + ext);
+      EXPECT_EQ(e.access(), FileAccess::Write);
     }
   }
   RowMap empty;
@@ -424,12 +427,10 @@ TEST(RowMap, RejectsBadInput)
   }
   p = RowMapParams();
   p.bin_mm = 0;
-  EXPECT_THROW(RowMap m(p), std::runtime_error);
+  EXPECT_THROW(RowMap m(p), BadSettings);
   RowMap map;
   const StereoGeometry g = camera();
-  EXPECT_THROW(map.add_frame(cv::Mat::zeros(10, 10, CV_8U), {}, g, level_ground(), 0),
-               std::runtime_error);
+  EXPECT_THROW(map.add_frame(cv::Mat::zeros(10, 10, CV_8U), {}, g, level_ground(), 0), BadInput);
   GroundPlane none;
-  EXPECT_THROW(map.add_frame(cv::Mat::zeros(g.view_size, CV_8U), {}, g, none, 0),
-               std::runtime_error);
+  EXPECT_THROW(map.add_frame(cv::Mat::zeros(g.view_size, CV_8U), {}, g, none, 0), BadInput);
 }

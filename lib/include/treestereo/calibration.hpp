@@ -1,6 +1,8 @@
 // Stereo calibration: the data, reading and writing it, and checking it.
 #pragma once
 
+#include "treestereo/errors.hpp"
+
 #include <opencv2/core.hpp>
 
 #include <stdexcept>
@@ -24,15 +26,20 @@ struct StereoCalibration {
   bool has_rectification() const { return !R1.empty() && !P1.empty(); }
 };
 
-// Every problem with a calibration is one of these: where (file, key) and what.
-class CalibrationError : public std::runtime_error {
+// Every problem with a calibration is one of these: where (file, key) and what. A calibration is
+// a setting: its content is BadSettings; access says when the file itself could not be read or
+// written.
+class CalibrationError : public BadSettings {
 public:
-  CalibrationError(std::string file, std::string key, const std::string &problem);
+  CalibrationError(std::string file, std::string key, const std::string &problem,
+                   FileAccess access = FileAccess::None);
   const std::string &file() const { return file_; }
   const std::string &key() const { return key_; }
+  FileAccess access() const { return access_; }
 
 private:
   std::string file_, key_;
+  FileAccess access_;
 };
 
 // Loads a calibration. `spec` is one of
