@@ -33,6 +33,20 @@ constexpr int kBlockStrips = 4;
 // Points a block needs to speak for its pixels' depth.
 constexpr std::size_t kBlockMinPoints = 3;
 
+// at(s) if it is set (> 0), else the nearest set value within kStripReach of s (the lower side
+// first at equal distance), else -1. `at` reads position 0..n-1.
+template <class At> double nearest_set(int s, int n, At at)
+{
+  double z = at(s);
+  for (int d = 1; z < 0 && d <= kStripReach; ++d) {
+    if (s - d >= 0 && at(s - d) > 0)
+      z = at(s - d);
+    else if (s + d < n && at(s + d) > 0)
+      z = at(s + d);
+  }
+  return z;
+}
+
 void require(bool ok, const char *field, const char *range)
 {
   if (!ok)
@@ -184,13 +198,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       sz[std::size_t(s)] = median(strip_z[std::size_t(s)]);
   std::vector<double> col_z(static_cast<std::size_t>(W));
   for (int s = 0; s < S; ++s) {
-    double z = sz[std::size_t(s)];
-    for (int d = 1; z < 0 && d <= kStripReach; ++d) {
-      if (s - d >= 0 && sz[std::size_t(s - d)] > 0)
-        z = sz[std::size_t(s - d)];
-      else if (s + d < S && sz[std::size_t(s + d)] > 0)
-        z = sz[std::size_t(s + d)];
-    }
+    double z = nearest_set(s, S, [&](int t) { return sz[std::size_t(t)]; });
     if (z < 0)
       z = row_z;
     for (int u = s * params_.strip_px; u < std::min(W, (s + 1) * params_.strip_px); ++u)
@@ -222,17 +230,11 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       if (near.size() >= kBlockMinPoints)
         own_z[std::size_t(s) * std::size_t(B) + std::size_t(r)] = median(near);
     }
-  std::vector<double> block_z = own_z;
+  std::vector<double> block_z(own_z.size());
   for (int s = 0; s < S; ++s)
-    for (int r = 0; r < B; ++r) {
-      double &z = block_z[std::size_t(s) * std::size_t(B) + std::size_t(r)];
-      for (int d = 1; z < 0 && d <= kStripReach; ++d) {
-        if (s - d >= 0 && own_z[std::size_t(s - d) * std::size_t(B) + std::size_t(r)] > 0)
-          z = own_z[std::size_t(s - d) * std::size_t(B) + std::size_t(r)];
-        else if (s + d < S && own_z[std::size_t(s + d) * std::size_t(B) + std::size_t(r)] > 0)
-          z = own_z[std::size_t(s + d) * std::size_t(B) + std::size_t(r)];
-      }
-    }
+    for (int r = 0; r < B; ++r)
+      block_z[std::size_t(s) * std::size_t(B) + std::size_t(r)] = nearest_set(
+          s, S, [&](int t) { return own_z[std::size_t(t) * std::size_t(B) + std::size_t(r)]; });
 
   // Every pixel placed on the canopy's surface: counts per (bin, band).
   const double bin = params_.bin_mm;
@@ -251,6 +253,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   // a column's rows tile the bands without overlap. Canopy pixels are placed at their block's
   // depth, where the canopy is, each weighing the area it covers there in pixels at the strip's
   // depth, (z / z_strip)^2.
+  // The cell of pixel row v seen in column u at depth z (-1: none), and its world x.
   auto cell_of = [&](int u, int v, double z, double &wx) {
     const double X = (u - cx) / fx * z;
     wx = X + position_mm;
@@ -263,8 +266,8 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   for (int u = 0; u < W; ++u) {
     const double z_col = col_z[std::size_t(u)];
     const std::size_t strip = std::size_t(u / params_.strip_px) * std::size_t(B);
+    double wx = 0;
     for (int v = 0; v < H; ++v) {
-      double wx = 0;
       const long c_all = cell_of(u, v, z_col, wx);
       if (c_all >= 0)
         ++total[std::size_t(c_all)];
@@ -272,7 +275,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         continue;
       const double bz = block_z[strip + std::size_t(v / block_rows)];
       const double z = bz > 0 ? bz : z_col;
-      const long c = cell_of(u, v, z, wx);
+      const long c = bz > 0 ? cell_of(u, v, z, wx) : c_all;
       if (c < 0)
         continue;
       const double half_px = 0.5 * z / fx; // a column covers wx +- half a pixel along the row

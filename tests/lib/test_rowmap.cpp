@@ -102,15 +102,21 @@ double true_fill(long bin, int band, double *distance_m)
   return 0;
 }
 
-RowMap build(double step_mm = 100)
+// The map of `walls` from frames every step_mm from 0 to to_mm.
+RowMap build_of(const std::vector<Wall> &walls, double step_mm, double to_mm)
 {
   const StereoGeometry g = camera();
   RowMap map;
-  for (double pos = 0; pos <= 4000; pos += step_mm) {
-    const View v = cast(g, kWalls, pos);
+  for (double pos = 0; pos <= to_mm; pos += step_mm) {
+    const View v = cast(g, walls, pos);
     map.add_frame(v.mask, v.points, g, level_ground(), pos);
   }
   return map;
+}
+
+RowMap build(double step_mm = 100)
+{
+  return build_of(kWalls, step_mm, 4000);
 }
 
 std::vector<TreeRecord> trees()
@@ -172,13 +178,8 @@ TEST(RowMap, CanopyEdgesWithinTheBins)
 {
   // Canopies whose ends fall inside bins: 1.020-1.590 m at 2 m, 1.713-2.262 m at 2.2 m. The
   // cells holding an end know where in the bin the canopy stops (a pixel is 1.8-2 mm there).
-  const std::vector<Wall> walls = {{1020, 1590, 500, 1450, 2000}, {1713, 2262, 700, 1300, 2200}};
-  const StereoGeometry g = camera();
-  RowMap map;
-  for (double pos = 0; pos <= 4000; pos += 100) {
-    const View v = cast(g, walls, pos);
-    map.add_frame(v.mask, v.points, g, level_ground(), pos);
-  }
+  const RowMap map =
+      build_of({{1020, 1590, 500, 1450, 2000}, {1713, 2262, 700, 1300, 2200}}, 100, 4000);
   const double px = 2.5e-3; // m
   for (int k = 1; k <= 2; ++k) {
     SCOPED_TRACE("band " + std::to_string(k));
@@ -223,13 +224,8 @@ TEST(RowMap, ACrownsTopIsPlacedAtItsOwnDepth)
   // A crown's front at 2 m from 0.5 to 1.0 m above the ground, its top 0.6 m further back, 1.3
   // to 1.55 m: at the front's depth the top's pixels would read 1.22-1.41 m, a third of them in
   // band 2 (1.0-1.3 m), which holds no canopy.
-  const std::vector<Wall> walls = {{1000, 1600, 500, 1000, 2000}, {1000, 1600, 1300, 1550, 2600}};
-  const StereoGeometry g = camera();
-  RowMap map;
-  for (double pos = 0; pos <= 2500; pos += 100) {
-    const View v = cast(g, walls, pos);
-    map.add_frame(v.mask, v.points, g, level_ground(), pos);
-  }
+  const RowMap map =
+      build_of({{1000, 1600, 500, 1000, 2000}, {1000, 1600, 1300, 1550, 2600}}, 100, 2500);
   for (long b = 22; b <= 29; ++b) {
     SCOPED_TRACE("bin " + std::to_string(b));
     EXPECT_NEAR(map.cell(b, 0).fill, 0.2 / 0.3, 0.03); // 0.4-0.7 m: 0.5-0.7 is canopy
