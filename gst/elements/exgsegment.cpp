@@ -57,8 +57,7 @@ using namespace treestereo::gst;
  * exceeded, so the property stops there. */
 #define MAX_THRESHOLD 765.0
 
-namespace
-{
+namespace {
 
 struct Settings {
   SegmentParams params; // segmentation settings (the channel order is set per format)
@@ -109,8 +108,7 @@ struct MaskPool {
 };
 
 /* A mask buffer mapped for writing for the scope; the segmenter writes into it through mat. */
-class MappedMask
-{
+class MappedMask {
 public:
   MappedMask(GstBuffer *buf, cv::Size size, guint stride) : buf_(buf)
   {
@@ -160,8 +158,7 @@ struct GstExgSegmentClass {
 };
 
 #define GST_TYPE_EXG_SEGMENT (gst_exg_segment_get_type())
-#define GST_EXG_SEGMENT(obj)                                                                       \
-  (G_TYPE_CHECK_INSTANCE_CAST((obj), GST_TYPE_EXG_SEGMENT, GstExgSegment))
+#define GST_EXG_SEGMENT(obj) (G_TYPE_CHECK_INSTANCE_CAST((obj), GST_TYPE_EXG_SEGMENT, GstExgSegment))
 G_DEFINE_TYPE(GstExgSegment, gst_exg_segment, GST_TYPE_VIDEO_FILTER);
 GST_ELEMENT_REGISTER_DEFINE(exgsegment, "exgsegment", GST_RANK_NONE, GST_TYPE_EXG_SEGMENT);
 
@@ -195,7 +192,8 @@ static GType gst_exg_segment_keep_get_type(void)
 {
   static GType type = 0;
   static const GEnumValue values[] = {
-      {int(KeepMode::Largest), "The largest region (one tree on a clear background)", "largest"},
+      {int(KeepMode::Largest), "The largest region (one tree on a clear background)",
+       "largest"},
       {int(KeepMode::All),
        "Every region of at least min-area pixels (all the vegetation; depth picks the canopy)",
        "all"},
@@ -226,12 +224,11 @@ static void ensure_segmenters(GstExgSegment *self, const Settings &s)
   for (auto &seg : st->segmenter)
     seg = std::make_unique<VegetationSegmenter>(p);
   st->seg_generation = s.generation;
-  GST_INFO_OBJECT(
-      self,
-      "segmenting with %s, threshold %g, morph-size %d, reconstruct %d, unmix-edges %d, "
-      "min-area %g, keep %s",
-      veg_index_name(p.index), p.threshold, p.morph_size, int(p.reconstruct), int(p.unmix_edges),
-      p.min_area, keep_mode_name(p.keep));
+  GST_INFO_OBJECT(self,
+                  "segmenting with %s, threshold %g, morph-size %d, reconstruct %d, unmix-edges %d, "
+                  "min-area %g, keep %s",
+                  veg_index_name(p.index), p.threshold, p.morph_size, int(p.reconstruct),
+                  int(p.unmix_edges), p.min_area, keep_mode_name(p.keep));
 }
 
 static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *incaps,

@@ -97,8 +97,7 @@ using namespace treestereo::gst;
 #define DEFAULT_POST_MESSAGES TRUE
 #define MAX_DISPARITY_LIMIT 100000.0
 
-namespace
-{
+namespace {
 
 /* siftmatch's defaults, from lib (the property defaults and the settings' initial values). */
 const MatchParams &preset()
@@ -282,8 +281,7 @@ static const StereoMatcher &matcher_for(GstSiftMatch *self, const Settings &s,
 
 /* The canopy of one view as a detection mask: the vegetation mask when it has the view's size,
  * else the bounding box; all zero when no canopy was found (nothing to match there). */
-class ViewMask
-{
+class ViewMask {
 public:
   ViewMask(const GstTreeStereoVegetationView *v, cv::Size view_size)
   {

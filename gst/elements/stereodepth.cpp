@@ -80,9 +80,8 @@
  * |[
  * gst-launch-1.0 -m stereorectify name=r calibration=docs/examples/calibration-mer500.yml ! \
  *   stereodepth mode=dense min-depth=1000 max-depth=5000 ! treemetrics ! fakesink \
- *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 !
- * r.left \ videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486
- * ! r.right
+ *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 ! r.left \
+ *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 ! r.right
  * ]|
  */
 #ifdef HAVE_CONFIG_H
@@ -178,8 +177,7 @@ static GType gst_stereo_depth_ground_get_type(void)
 #define DEFAULT_DENSIFY TRUE
 #define DEFAULT_POST_MESSAGES TRUE
 
-namespace
-{
+namespace {
 
 struct Settings {
   GstStereoDepthMode mode = DEFAULT_MODE;
@@ -206,7 +204,7 @@ struct Output {
   GstTreeStereoDepthStats stats{};
   GstBuffer *depth_map = nullptr; // owned until attached
   cv::Rect box;
-  bool has_canopy = false; // the 3D canopy was decided
+  bool has_canopy = false;        // the 3D canopy was decided
   CanopyResult canopy;
 };
 
@@ -222,7 +220,7 @@ struct GstStereoDepthClass {
 };
 
 #define GST_TYPE_STEREO_DEPTH (gst_stereo_depth_get_type())
-#define GST_STEREO_DEPTH(obj)                                                                      \
+#define GST_STEREO_DEPTH(obj) \
   (G_TYPE_CHECK_INSTANCE_CAST((obj), GST_TYPE_STEREO_DEPTH, GstStereoDepth))
 G_DEFINE_TYPE(GstStereoDepth, gst_stereo_depth, GST_TYPE_BASE_TRANSFORM);
 GST_ELEMENT_REGISTER_DEFINE(stereodepth, "stereodepth", GST_RANK_NONE, GST_TYPE_STEREO_DEPTH);
@@ -419,8 +417,8 @@ static GstBuffer *depth_map_buffer(const cv::Mat &depth)
   return buf;
 }
 
-static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g, const Settings &s,
-                  Output &out)
+static void dense(GstStereoDepth *self, GstBuffer *buf, const StereoGeometry &g,
+                  const Settings &s, Output &out)
 {
   State *st = self->state;
   if (!st->info_set)
@@ -473,7 +471,8 @@ static gboolean gst_stereo_depth_set_caps(GstBaseTransform *trans, GstCaps *inca
 static void attach_and_post(GstStereoDepth *self, GstBuffer *buf, const Settings &s, Output &out)
 {
   GstTreeStereoPointsMeta *pm = gst_buffer_add_tree_stereo_points_meta(
-      buf, out.points.empty() ? nullptr : out.points.data(), guint(out.points.size()), &out.stats);
+      buf, out.points.empty() ? nullptr : out.points.data(), guint(out.points.size()),
+      &out.stats);
   pm->dense = s.mode == GST_STEREO_DEPTH_MODE_DENSE;
   if (out.depth_map) {
     gst_tree_stereo_points_meta_set_depth_map(pm, out.depth_map, out.box.x, out.box.y,
@@ -482,13 +481,13 @@ static void attach_and_post(GstStereoDepth *self, GstBuffer *buf, const Settings
     gst_clear_buffer(&out.depth_map);
   }
   const GstTreeStereoCanopyMeta *cm =
-      out.has_canopy
-          ? treestereo::gst::add_canopy_meta(
-                buf, out.canopy,
-                s.canopy == GST_STEREO_DEPTH_CANOPY_ROW ? CanopyMode::Row : CanopyMode::Tree)
-          : nullptr;
-  GST_LOG_OBJECT(self, "%u points, %u valid, median %.1f mm", out.stats.n_points, out.stats.n_valid,
-                 out.stats.median_z_mm);
+      out.has_canopy ? treestereo::gst::add_canopy_meta(
+                           buf, out.canopy,
+                           s.canopy == GST_STEREO_DEPTH_CANOPY_ROW ? CanopyMode::Row
+                                                                   : CanopyMode::Tree)
+                     : nullptr;
+  GST_LOG_OBJECT(self, "%u points, %u valid, median %.1f mm", out.stats.n_points,
+                 out.stats.n_valid, out.stats.median_z_mm);
   if (!s.post_messages)
     return;
   GstTreeStereoTimes times;
@@ -523,8 +522,9 @@ static GstFlowReturn gst_stereo_depth_transform_ip(GstBaseTransform *trans, GstB
       GST_ELEMENT_ERROR(self, RESOURCE, SETTINGS, ("%s", problem.c_str()),
                         ("canopy settings: ground %s, camera-height %g mm, zone %g..%g mm, "
                          "height %g..%g mm",
-                         ground_model_name(s.zone.ground), s.zone.camera_height_mm, s.zone.near_mm,
-                         s.zone.far_mm, s.zone.min_height_mm, s.zone.max_height_mm));
+                         ground_model_name(s.zone.ground), s.zone.camera_height_mm,
+                         s.zone.near_mm, s.zone.far_mm, s.zone.min_height_mm,
+                         s.zone.max_height_mm));
       return GST_FLOW_ERROR;
     }
   }

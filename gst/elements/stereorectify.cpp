@@ -63,8 +63,7 @@ using namespace treestereo::gst;
  * is a configuration error. */
 #define MAX_MISMATCHED_FRAMES 30
 
-namespace
-{
+namespace {
 
 struct Settings {
   std::string calibration;
@@ -107,15 +106,16 @@ struct GstStereoRectifyClass {
 };
 
 #define GST_TYPE_STEREO_RECTIFY (gst_stereo_rectify_get_type())
-#define GST_STEREO_RECTIFY(obj)                                                                    \
+#define GST_STEREO_RECTIFY(obj) \
   (G_TYPE_CHECK_INSTANCE_CAST((obj), GST_TYPE_STEREO_RECTIFY, GstStereoRectify))
 G_DEFINE_TYPE(GstStereoRectify, gst_stereo_rectify, GST_TYPE_AGGREGATOR);
-GST_ELEMENT_REGISTER_DEFINE(stereorectify, "stereorectify", GST_RANK_NONE, GST_TYPE_STEREO_RECTIFY);
+GST_ELEMENT_REGISTER_DEFINE(stereorectify, "stereorectify", GST_RANK_NONE,
+                            GST_TYPE_STEREO_RECTIFY);
 
 #define SINK_CAPS GST_VIDEO_CAPS_MAKE(TREESTEREO_VIDEO_FORMATS)
-#define SRC_CAPS                                                                                   \
-  "video/x-raw, format = (string) " TREESTEREO_VIDEO_FORMATS ", width = (int) [ 2, MAX ], "        \
-  "height = (int) [ 1, MAX ], framerate = (fraction) [ 0, MAX ], "                                 \
+#define SRC_CAPS                                                                              \
+  "video/x-raw, format = (string) " TREESTEREO_VIDEO_FORMATS ", width = (int) [ 2, MAX ], "   \
+  "height = (int) [ 1, MAX ], framerate = (fraction) [ 0, MAX ], "                            \
   "multiview-mode = (string) side-by-side"
 
 static GstStaticPadTemplate left_template =
@@ -215,9 +215,9 @@ static gboolean gst_stereo_rectify_sink_event(GstAggregator *agg, GstAggregatorP
     const int i = pad_index(self, pad);
     GstVideoInfo info;
     if (!gst_video_info_from_caps(&info, caps)) {
-      GST_ELEMENT_ERROR(
-          self, CORE, NEGOTIATION, (nullptr),
-          ("invalid caps on the %s pad: %" GST_PTR_FORMAT, i == LEFT ? "left" : "right", caps));
+      GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr),
+                        ("invalid caps on the %s pad: %" GST_PTR_FORMAT,
+                         i == LEFT ? "left" : "right", caps));
       gst_event_unref(event);
       return FALSE;
     }
@@ -334,11 +334,12 @@ static void drop_frame(GstStereoRectify *self, int i, GstBuffer *buf, GstClockTi
   gst_element_post_message(GST_ELEMENT(self), qos);
   if (!st->in_drop_run) {
     st->in_drop_run = true;
-    GST_ELEMENT_WARNING(
-        self, STREAM, FAILED,
-        ("Dropping unpaired %s camera frames: %s", i == LEFT ? "left" : "right", why),
-        ("running time %" GST_TIME_FORMAT ", %" G_GUINT64_FORMAT " dropped so far",
-         GST_TIME_ARGS(rt), dropped));
+    GST_ELEMENT_WARNING(self, STREAM, FAILED,
+                        ("Dropping unpaired %s camera frames: %s", i == LEFT ? "left" : "right",
+                         why),
+                        ("running time %" GST_TIME_FORMAT ", %" G_GUINT64_FORMAT
+                         " dropped so far",
+                         GST_TIME_ARGS(rt), dropped));
   }
   gst_aggregator_pad_drop_buffer(pad);
 }
@@ -425,8 +426,8 @@ static GstFlowReturn compose_pair(GstStereoRectify *self, GstBuffer *in[2], GstC
   st->ever_paired = true;
   st->in_drop_run = false;
   st->mismatched = 0;
-  gst_aggregator_selected_samples(agg, rt[LEFT], GST_CLOCK_TIME_NONE, GST_BUFFER_DURATION(in[LEFT]),
-                                  nullptr);
+  gst_aggregator_selected_samples(agg, rt[LEFT], GST_CLOCK_TIME_NONE,
+                                  GST_BUFFER_DURATION(in[LEFT]), nullptr);
   gst_aggregator_pad_drop_buffer(self->pads[LEFT]);
   gst_aggregator_pad_drop_buffer(self->pads[RIGHT]);
   return gst_aggregator_finish_buffer(agg, out);
@@ -468,7 +469,8 @@ static GstFlowReturn gst_stereo_rectify_aggregate(GstAggregator *agg, gboolean t
   }
 
   if (!infos_match(&st->pad_info[LEFT], &st->pad_info[RIGHT])) {
-    const std::string l = caps_summary(&st->pad_info[LEFT]), r = caps_summary(&st->pad_info[RIGHT]);
+    const std::string l = caps_summary(&st->pad_info[LEFT]),
+                      r = caps_summary(&st->pad_info[RIGHT]);
     if (!st->ever_paired || ++st->mismatched > MAX_MISMATCHED_FRAMES) {
       GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
                         ("The left and right cameras deliver different formats or sizes: left "
@@ -490,11 +492,10 @@ static GstFlowReturn gst_stereo_rectify_aggregate(GstAggregator *agg, gboolean t
     const Settings s = snapshot(self);
     GstCaps *current = gst_pad_get_current_caps(GST_AGGREGATOR_SRC_PAD(agg));
     GstVideoInfo cur;
-    const bool caps_ok =
-        current && gst_video_info_from_caps(&cur, current) &&
-        GST_VIDEO_INFO_FORMAT(&cur) == GST_VIDEO_INFO_FORMAT(&st->pad_info[LEFT]) &&
-        GST_VIDEO_INFO_WIDTH(&cur) == 2 * GST_VIDEO_INFO_WIDTH(&st->pad_info[LEFT]) &&
-        GST_VIDEO_INFO_HEIGHT(&cur) == GST_VIDEO_INFO_HEIGHT(&st->pad_info[LEFT]);
+    const bool caps_ok = current && gst_video_info_from_caps(&cur, current) &&
+                         GST_VIDEO_INFO_FORMAT(&cur) == GST_VIDEO_INFO_FORMAT(&st->pad_info[LEFT]) &&
+                         GST_VIDEO_INFO_WIDTH(&cur) == 2 * GST_VIDEO_INFO_WIDTH(&st->pad_info[LEFT]) &&
+                         GST_VIDEO_INFO_HEIGHT(&cur) == GST_VIDEO_INFO_HEIGHT(&st->pad_info[LEFT]);
     gst_clear_caps(&current);
     if (!caps_ok || !st->out_configured) {
       /* the inputs agree now on a new size: renegotiate before composing */

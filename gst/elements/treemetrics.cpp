@@ -98,9 +98,8 @@
  * |[
  * gst-launch-1.0 -m stereorectify name=r calibration=docs/examples/calibration-mer500.yml ! \
  *   stereodepth mode=dense min-depth=1000 max-depth=5000 ! treemetrics ! fakesink \
- *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 !
- * r.left \ videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486
- * ! r.right
+ *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 ! r.left \
+ *   videotestsrc num-buffers=2 pattern=snow ! video/x-raw,format=GRAY8,width=648,height=486 ! r.right
  * ]|
  */
 #ifdef HAVE_CONFIG_H
@@ -169,8 +168,7 @@ static GType gst_tree_metrics_extent_get_type(void)
 /* lib's MetricsSmoother takes alpha in [0, 1) */
 #define MAX_SMOOTHING 0.99
 
-namespace
-{
+namespace {
 
 struct Settings {
   int bands = DEFAULT_BANDS;
@@ -245,7 +243,7 @@ struct GstTreeMetricsClass {
 };
 
 #define GST_TYPE_TREE_METRICS (gst_tree_metrics_get_type())
-#define GST_TREE_METRICS(obj)                                                                      \
+#define GST_TREE_METRICS(obj) \
   (G_TYPE_CHECK_INSTANCE_CAST((obj), GST_TYPE_TREE_METRICS, GstTreeMetrics))
 G_DEFINE_TYPE(GstTreeMetrics, gst_tree_metrics, GST_TYPE_BASE_TRANSFORM);
 GST_ELEMENT_REGISTER_DEFINE(treemetrics, "treemetrics", GST_RANK_NONE, GST_TYPE_TREE_METRICS);
@@ -322,9 +320,9 @@ static constexpr double kMaxPredictedS = 1.0;
 /* The travel since the previous frame (mm) and where it came from. Keeps this frame's grey views
  * for the next one when the stereo estimate is on. */
 static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *buf,
-                                              const Settings &s, const StereoGeometry &geometry,
-                                              const GstTreeStereoCanopyMeta *canopy,
-                                              const GstTreeStereoPointsMeta *pm, double &travel_mm)
+                                             const Settings &s, const StereoGeometry &geometry,
+                                             const GstTreeStereoCanopyMeta *canopy,
+                                             const GstTreeStereoPointsMeta *pm, double &travel_mm)
 {
   State *st = self->state;
   Along &a = st->along;
@@ -416,7 +414,8 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
                      step.found ? "found" : "not found", step.travel_mm,
                      step.from_key ? "key" : "previous", m.points, m.tracked, m.inliers, m.rms_px,
                      ms);
-    const double dt_s = had_pts ? double(GST_CLOCK_DIFF(prev_pts, pts)) / double(GST_SECOND) : 0.0;
+    const double dt_s =
+        had_pts ? double(GST_CLOCK_DIFF(prev_pts, pts)) / double(GST_SECOND) : 0.0;
     if (step.found) {
       travel_mm = step.travel_mm;
       source = GST_TREE_STEREO_TRAVEL_STEREO;
@@ -447,8 +446,8 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
 {
   Along &a = self->state->along;
   std::vector<TreeRecord> out;
-  if (!canopy ||
-      (canopy->mode != GST_TREE_STEREO_CANOPY_TREE && canopy->mode != GST_TREE_STEREO_CANOPY_ROW))
+  if (!canopy || (canopy->mode != GST_TREE_STEREO_CANOPY_TREE &&
+                  canopy->mode != GST_TREE_STEREO_CANOPY_ROW))
     return out; // the colour silhouette says nothing of the row
   const CanopyMode mode =
       canopy->mode == GST_TREE_STEREO_CANOPY_ROW ? CanopyMode::Row : CanopyMode::Tree;
@@ -548,9 +547,8 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
   // The 3D canopy (stereodepth), when decided, is what is measured: colour alone takes the
   // grass, the next row and the neighbours too.
   const GstTreeStereoCanopyMeta *canopy = gst_buffer_get_tree_stereo_canopy_meta(buf);
-  const GstTreeStereoVegetationView *silhouette = canopy ? &canopy->view
-                                                  : veg  ? &veg->views[LEFT]
-                                                         : nullptr;
+  const GstTreeStereoVegetationView *silhouette =
+      canopy ? &canopy->view : veg ? &veg->views[LEFT] : nullptr;
   const GstTreeStereoCanopyMode mode = canopy ? canopy->mode : GST_TREE_STEREO_CANOPY_COLOUR;
   if (!silhouette || !pm)
     warn_missing(self, buf, silhouette != nullptr);
@@ -592,8 +590,7 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
   gst_tree_stereo_times_from_buffer(&st->along.last_times, buf, &trans->segment);
   post_records(self, records, &st->along.last_times);
 
-  GstTreeStereoMetricsMeta *meta =
-      gst_buffer_add_tree_stereo_metrics_meta(buf, &raw.m, &smoothed.m);
+  GstTreeStereoMetricsMeta *meta = gst_buffer_add_tree_stereo_metrics_meta(buf, &raw.m, &smoothed.m);
   GST_LOG_OBJECT(self, "tree %d, distance %.3f m, width %.3f m, height %.3f m",
                  meta->metrics.tree_present, meta->metrics.distance_m, meta->metrics.width_m,
                  meta->metrics.height_m);

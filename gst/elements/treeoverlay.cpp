@@ -102,8 +102,7 @@ static GType gst_tree_overlay_match_style_get_type(void)
   return type;
 }
 
-namespace
-{
+namespace {
 
 struct Settings {
   GstTreeOverlayViews views = DEFAULT_VIEWS;
@@ -137,7 +136,7 @@ struct GstTreeOverlayClass {
 };
 
 #define GST_TYPE_TREE_OVERLAY (gst_tree_overlay_get_type())
-#define GST_TREE_OVERLAY(obj)                                                                      \
+#define GST_TREE_OVERLAY(obj) \
   (G_TYPE_CHECK_INSTANCE_CAST((obj), GST_TYPE_TREE_OVERLAY, GstTreeOverlay))
 G_DEFINE_TYPE(GstTreeOverlay, gst_tree_overlay, GST_TYPE_VIDEO_FILTER);
 GST_ELEMENT_REGISTER_DEFINE(treeoverlay, "treeoverlay", GST_RANK_NONE, GST_TYPE_TREE_OVERLAY);
@@ -235,8 +234,7 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
 {
   GstTreeOverlay *self = GST_TREE_OVERLAY(filter);
   State *st = self->state;
-  const treestereo::gst::PixelLayout layout =
-      treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(in_info));
+  const treestereo::gst::PixelLayout layout = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(in_info));
   if (!layout.color || GST_VIDEO_INFO_FORMAT(in_info) != GST_VIDEO_INFO_FORMAT(out_info)) {
     GST_ELEMENT_ERROR(
         self, CORE, NEGOTIATION,
@@ -252,8 +250,7 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
   st->ground = GroundPlane();
   const int in_w = GST_VIDEO_INFO_WIDTH(in_info), out_w = GST_VIDEO_INFO_WIDTH(out_info);
   st->crop = st->in_views == 2 && out_w == in_w / 2;
-  if ((!st->crop && out_w != in_w) ||
-      GST_VIDEO_INFO_HEIGHT(in_info) != GST_VIDEO_INFO_HEIGHT(out_info)) {
+  if ((!st->crop && out_w != in_w) || GST_VIDEO_INFO_HEIGHT(in_info) != GST_VIDEO_INFO_HEIGHT(out_info)) {
     GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
                       ("treeoverlay gives out the frame's size, or its left view's with "
                        "views=left: set caps downstream that fit."),
