@@ -31,7 +31,7 @@ def count(path):
             j = block_end(lines, i, "};")
             n += j - i + 1
             i = j + 1
-        elif re.match(r"#define (RW|RO)\b", line):
+        elif re.match(r"#define (RW_\w+|RO|PROP_FLAGS)\b", line):
             j = i
             while lines[j].endswith("\\"):
                 j += 1

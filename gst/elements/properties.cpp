@@ -1,8 +1,7 @@
 /* The generic side of the property tables (properties.hpp): rows reached through their specs. */
 #include "properties.hpp"
 
-namespace treestereo::gst
-{
+namespace treestereo::gst {
 
 static GQuark row_quark()
 {

@@ -5,8 +5,8 @@
  * number (from 1), so rows go in the order gst-inspect lists them.
  *
  * In class_init (the table itself may go when class_init returns; the specs keep the rows):
- *   PropertyTable<Settings> props(gobject_class, settings_of, lock_of);
- *   props.real("speed", "Speed", "...", 0.0, 100.0, DEFAULT_SPEED, TS_FIELD(speed));
+ *   auto props = PropertyTable<Settings>::in_state<GstTreeMetrics>(gobject_class);
+ *   props.real("speed", "Speed", "...", 0.0, MAX_SPEED, DEFAULT_SPEED, TS_FIELD(speed));
  * A row whose value needs more than a copy (a conversion, a second field) gives its own setter
  * and getter on the settings (custom); one that must lock something else or act outside the
  * lock works on the object (on_object). */
@@ -19,8 +19,7 @@
 #include <string>
 #include <type_traits>
 
-namespace treestereo::gst
-{
+namespace treestereo::gst {
 
 /* The flags the elements' properties use. */
 constexpr GParamFlags kRwPlaying = static_cast<GParamFlags>(
@@ -31,15 +30,10 @@ constexpr GParamFlags kReadOnly =
     static_cast<GParamFlags>(G_PARAM_READABLE | G_PARAM_STATIC_STRINGS);
 
 /* A settings member as a row's field: TS_FIELD(zone.near_mm) reads and writes s.zone.near_mm. */
-#define TS_FIELD(member)                                                                           \
-  [](auto &s_) -> auto &                                                                           \
-  {                                                                                                \
-    return s_.member;                                                                              \
-  }
+#define TS_FIELD(member) [](auto &s_) -> auto & { return s_.member; }
 
 /* What the generic set_property and get_property call; a row of any table. */
-class PropertyRow
-{
+class PropertyRow {
 public:
   virtual ~PropertyRow() = default;
   virtual void set(GObject *object, const GValue *value) const = 0;
@@ -53,8 +47,7 @@ void set_property_from_table(GObject *object, guint id, const GValue *value, GPa
 void get_property_from_table(GObject *object, guint id, GValue *value, GParamSpec *spec);
 
 /* Holds @mutex, or the object lock of @object when @mutex is null. */
-class SettingsLock
-{
+class SettingsLock {
 public:
   SettingsLock(GObject *object, std::mutex *mutex);
   ~SettingsLock();
@@ -66,8 +59,7 @@ private:
   std::mutex *mutex_;
 };
 
-template <typename S> class PropertyTable
-{
+template <typename S> class PropertyTable {
 public:
   using Setter = std::function<void(S &, const GValue *)>;
   using Getter = std::function<void(const S &, GValue *)>;
@@ -99,46 +91,36 @@ public:
   void boolean(const char *name, const char *nick, const char *blurb, bool def, F field,
                GParamFlags flags = kRwPlaying)
   {
-    custom(
-        g_param_spec_boolean(name, nick, blurb, def, flags),
-        [field](S &s, const GValue *v) { field(s) = g_value_get_boolean(v) != FALSE; },
-        [field](const S &s, GValue *v) { g_value_set_boolean(v, field(s)); });
+    copied(g_param_spec_boolean(name, nick, blurb, def, flags), field, g_value_get_boolean,
+           g_value_set_boolean);
   }
   template <typename F>
   void integer(const char *name, const char *nick, const char *blurb, gint min, gint max, gint def,
                F field, GParamFlags flags = kRwPlaying)
   {
-    custom(
-        g_param_spec_int(name, nick, blurb, min, max, def, flags),
-        [field](S &s, const GValue *v) { field(s) = g_value_get_int(v); },
-        [field](const S &s, GValue *v) { g_value_set_int(v, field(s)); });
+    copied(g_param_spec_int(name, nick, blurb, min, max, def, flags), field, g_value_get_int,
+           g_value_set_int);
   }
   template <typename F>
   void uinteger(const char *name, const char *nick, const char *blurb, guint min, guint max,
                 guint def, F field, GParamFlags flags = kRwPlaying)
   {
-    custom(
-        g_param_spec_uint(name, nick, blurb, min, max, def, flags),
-        [field](S &s, const GValue *v) { field(s) = g_value_get_uint(v); },
-        [field](const S &s, GValue *v) { g_value_set_uint(v, field(s)); });
+    copied(g_param_spec_uint(name, nick, blurb, min, max, def, flags), field, g_value_get_uint,
+           g_value_set_uint);
   }
   template <typename F>
   void uint64(const char *name, const char *nick, const char *blurb, guint64 min, guint64 max,
               guint64 def, F field, GParamFlags flags = kRwPlaying)
   {
-    custom(
-        g_param_spec_uint64(name, nick, blurb, min, max, def, flags),
-        [field](S &s, const GValue *v) { field(s) = g_value_get_uint64(v); },
-        [field](const S &s, GValue *v) { g_value_set_uint64(v, field(s)); });
+    copied(g_param_spec_uint64(name, nick, blurb, min, max, def, flags), field,
+           g_value_get_uint64, g_value_set_uint64);
   }
   template <typename F>
   void real(const char *name, const char *nick, const char *blurb, double min, double max,
             double def, F field, GParamFlags flags = kRwPlaying)
   {
-    custom(
-        g_param_spec_double(name, nick, blurb, min, max, def, flags),
-        [field](S &s, const GValue *v) { field(s) = g_value_get_double(v); },
-        [field](const S &s, GValue *v) { g_value_set_double(v, field(s)); });
+    copied(g_param_spec_double(name, nick, blurb, min, max, def, flags), field,
+           g_value_get_double, g_value_set_double);
   }
   /* A std::string member; NULL sets it empty and an empty one reads as NULL. */
   template <typename F>
@@ -189,10 +171,18 @@ public:
   }
 
 private:
+  /* A row whose value is the member as it is, through GValue's getter and setter of its type. */
+  template <typename F, typename V>
+  void copied(GParamSpec *spec, F field, V (*get)(const GValue *), void (*set)(GValue *, V))
+  {
+    custom(
+        spec, [field, get](S &s, const GValue *v) { field(s) = get(v); },
+        [field, set](const S &s, GValue *v) { set(v, field(s)); });
+  }
+
   using Find = S &(*)(GObject *);
   using Lock = std::mutex &(*)(GObject *);
-  class SettingsRow : public PropertyRow
-  {
+  class SettingsRow : public PropertyRow {
   public:
     SettingsRow(Find settings, Lock lock, Setter set, Getter get)
         : settings_(settings), lock_(lock), set_(std::move(set)), get_(std::move(get))
@@ -215,8 +205,7 @@ private:
     Setter set_;
     Getter get_;
   };
-  class ObjectRow : public PropertyRow
-  {
+  class ObjectRow : public PropertyRow {
   public:
     ObjectRow(std::function<void(GObject *, const GValue *)> set,
               std::function<void(GObject *, GValue *)> get)
@@ -231,10 +220,7 @@ private:
     std::function<void(GObject *, GValue *)> get_;
   };
 
-  void add(GParamSpec *spec, PropertyRow *row)
-  {
-    install_property_row(klass_, ++count_, spec, row);
-  }
+  void add(GParamSpec *spec, PropertyRow *row) { install_property_row(klass_, ++count_, spec, row); }
 
   GObjectClass *klass_;
   Find settings_;
