@@ -80,6 +80,13 @@ public:
         klass, [](GObject *o) -> S & { return reinterpret_cast<Self *>(o)->state->settings; },
         [](GObject *o) -> std::mutex & { return reinterpret_cast<Self *>(o)->state->lock; });
   }
+  /* For an element that keeps its settings in the instance (self->settings) under the object
+   * lock. */
+  template <typename Self> static PropertyTable in_object(GObjectClass *klass)
+  {
+    return PropertyTable(klass,
+                         [](GObject *o) -> S & { return reinterpret_cast<Self *>(o)->settings; });
+  }
   PropertyTable(const PropertyTable &) = delete;
   PropertyTable &operator=(const PropertyTable &) = delete;
 

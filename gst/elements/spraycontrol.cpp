@@ -530,8 +530,7 @@ static void gst_spray_control_class_init(GstSprayControlClass *klass)
 
   gobject_class->finalize = gst_spray_control_finalize;
 
-  PropertyTable<Settings> props(
-      gobject_class, [](GObject *o) -> Settings & { return GST_SPRAY_CONTROL(o)->settings; });
+  auto props = PropertyTable<Settings>::in_object<GstSprayControl>(gobject_class);
   props.uinteger("sections", "Sections",
                  "Nozzle sections; 0 = one per height band of the row map (or one per "
                  "section-heights range); another count must match those",

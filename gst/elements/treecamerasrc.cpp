@@ -877,8 +877,7 @@ static void gst_tree_camera_src_class_init(GstTreeCameraSrcClass *klass)
 
   gobject_class->finalize = gst_tree_camera_src_finalize;
 
-  PropertyTable<Settings> props(
-      gobject_class, [](GObject *o) -> Settings & { return GST_TREE_CAMERA_SRC(o)->settings; });
+  auto props = PropertyTable<Settings>::in_object<GstTreeCameraSrc>(gobject_class);
   props.string("camera", "Camera",
                "The camera's name, serial number or IP address, as aravissrc's "
                "camera-name (arv-tool-0.8 lists them)",
