@@ -238,10 +238,11 @@ static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *incaps
   State *st = self->state;
   const PixelLayout layout = pixel_layout(GST_VIDEO_INFO_FORMAT(in_info));
   if (!layout.color) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("exgsegment needs colour frames, got %s: put videoconvert before it.",
-                       gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info))),
-                      ("caps %" GST_PTR_FORMAT, incaps));
+    post_caps_error(GST_ELEMENT(self),
+                    std::string("exgsegment needs colour frames, got ") +
+                        gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info)) +
+                        ": put videoconvert before it.",
+                    incaps);
     return FALSE;
   }
   st->order = layout.order();
@@ -249,11 +250,10 @@ static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *incaps
   st->seg_generation = ~guint64(0); // the channel order may have changed
   const cv::Size view(GST_VIDEO_INFO_WIDTH(in_info) / st->n_views, GST_VIDEO_INFO_HEIGHT(in_info));
   if (view.width < 1) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("A side-by-side frame %d px wide has no room for two views: check the "
-                       "caps upstream.",
-                       GST_VIDEO_INFO_WIDTH(in_info)),
-                      ("caps %" GST_PTR_FORMAT, incaps));
+    post_caps_error(GST_ELEMENT(self),
+                    "A side-by-side frame " + std::to_string(GST_VIDEO_INFO_WIDTH(in_info)) +
+                        " px wide has no room for two views: check the caps upstream.",
+                    incaps);
     return FALSE;
   }
   return guarded(GST_ELEMENT(self), FALSE, [&] {
@@ -340,7 +340,10 @@ static GstFlowReturn gst_exg_segment_transform_ip(GstBaseTransform *trans, GstBu
 {
   GstExgSegment *self = GST_EXG_SEGMENT(trans);
   if (!GST_VIDEO_FILTER(trans)->negotiated) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr), ("a buffer arrived before caps"));
+    post_caps_error(GST_ELEMENT(self),
+                    "exgsegment got a frame before any caps it accepts: check the caps of the "
+                    "elements before it.",
+                    nullptr, "a buffer arrived before caps");
     return GST_FLOW_NOT_NEGOTIATED;
   }
   return guarded(GST_ELEMENT(self), GST_FLOW_ERROR, [&] { return process(self, buf); });

@@ -401,10 +401,10 @@ static gboolean gst_sift_match_set_info(GstVideoFilter *filter, GstCaps *incaps,
                                         GstVideoInfo *out_info)
 {
   if (treestereo::gst::n_views_of(in_info) != 2) {
-    GST_ELEMENT_ERROR(filter, CORE, NEGOTIATION,
-                      ("siftmatch needs side-by-side stereo frames (multiview-mode=side-by-side) "
-                       "from stereorectify"),
-                      ("caps %" GST_PTR_FORMAT, incaps));
+    post_caps_error(GST_ELEMENT(filter),
+                    "siftmatch needs side-by-side stereo frames (multiview-mode=side-by-side) "
+                    "from stereorectify",
+                    incaps);
     return FALSE;
   }
   return TRUE;

@@ -460,8 +460,10 @@ static gboolean gst_stereo_depth_set_caps(GstBaseTransform *trans, GstCaps *inca
 {
   GstStereoDepth *self = GST_STEREO_DEPTH(trans);
   if (!gst_video_info_from_caps(&self->state->info, incaps)) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr),
-                      ("invalid caps %" GST_PTR_FORMAT, incaps));
+    post_caps_error(GST_ELEMENT(self),
+                    "stereodepth cannot read its caps as raw video: check the caps of the "
+                    "elements before it.",
+                    incaps, "invalid caps");
     return FALSE;
   }
   self->state->info_set = true;

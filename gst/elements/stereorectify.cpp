@@ -215,9 +215,11 @@ static gboolean gst_stereo_rectify_sink_event(GstAggregator *agg, GstAggregatorP
     const int i = pad_index(self, pad);
     GstVideoInfo info;
     if (!gst_video_info_from_caps(&info, caps)) {
-      GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr),
-                        ("invalid caps on the %s pad: %" GST_PTR_FORMAT,
-                         i == LEFT ? "left" : "right", caps));
+      const std::string side = i == LEFT ? "left" : "right";
+      post_caps_error(GST_ELEMENT(self),
+                      "stereorectify cannot read the caps of its " + side +
+                          " pad as raw video: check the " + side + " camera's chain.",
+                      caps, "invalid caps on the " + side + " pad");
       gst_event_unref(event);
       return FALSE;
     }
@@ -284,12 +286,12 @@ static gboolean gst_stereo_rectify_negotiated_src_caps(GstAggregator *agg, GstCa
     configure_rectification(self, s);
   } catch (const std::exception &e) {
     /* the frames' size does not fit the calibration: the caps are what cannot be used */
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("stereorectify cannot rectify %s frames with the calibration \"%s\": "
-                       "give it frames of the calibration's size (or a pure scale of it), or a "
-                       "calibration made at this size.",
-                       caps_summary(&st->pad_info[LEFT]).c_str(), s.calibration.c_str()),
-                      ("%s", e.what()));
+    post_caps_error(GST_ELEMENT(self),
+                    "stereorectify cannot rectify " + caps_summary(&st->pad_info[LEFT]) +
+                        " frames with the calibration \"" + s.calibration +
+                        "\": give it frames of the calibration's size (or a pure scale of it), "
+                        "or a calibration made at this size.",
+                    nullptr, e.what());
     st->out_configured = false;
     return FALSE;
   }
@@ -472,11 +474,11 @@ static GstFlowReturn gst_stereo_rectify_aggregate(GstAggregator *agg, gboolean t
     const std::string l = caps_summary(&st->pad_info[LEFT]),
                       r = caps_summary(&st->pad_info[RIGHT]);
     if (!st->ever_paired || ++st->mismatched > MAX_MISMATCHED_FRAMES) {
-      GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                        ("The left and right cameras deliver different formats or sizes: left "
-                         "%s, right %s. Both must be the same; set caps filters so they agree.",
-                         l.c_str(), r.c_str()),
-                        (nullptr));
+      post_caps_error(GST_ELEMENT(self),
+                      "The left and right cameras deliver different formats or sizes: left " + l +
+                          ", right " + r +
+                          ". Both must be the same; set caps filters so they agree.",
+                      nullptr);
       ret = GST_FLOW_NOT_NEGOTIATED;
       goto done;
     }

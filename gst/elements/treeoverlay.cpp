@@ -236,12 +236,14 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
   State *st = self->state;
   const treestereo::gst::PixelLayout layout = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(in_info));
   if (!layout.color || GST_VIDEO_INFO_FORMAT(in_info) != GST_VIDEO_INFO_FORMAT(out_info)) {
-    GST_ELEMENT_ERROR(
-        self, CORE, NEGOTIATION,
-        ("treeoverlay draws on colour frames of one format in and out, got %s: "
-         "put videoconvert before it.",
-         gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info))),
-        ("unsupported formats %" GST_PTR_FORMAT " -> %" GST_PTR_FORMAT, incaps, outcaps));
+    gchar *out = gst_caps_to_string(outcaps);
+    post_caps_error(GST_ELEMENT(self),
+                    std::string("treeoverlay draws on colour frames of one format in and out, "
+                                "got ") +
+                        gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info)) +
+                        ": put videoconvert before it.",
+                    incaps, std::string("unsupported formats, out caps ") + out);
+    g_free(out);
     return FALSE;
   }
   st->order = layout.order();
@@ -251,11 +253,13 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
   const int in_w = GST_VIDEO_INFO_WIDTH(in_info), out_w = GST_VIDEO_INFO_WIDTH(out_info);
   st->crop = st->in_views == 2 && out_w == in_w / 2;
   if ((!st->crop && out_w != in_w) || GST_VIDEO_INFO_HEIGHT(in_info) != GST_VIDEO_INFO_HEIGHT(out_info)) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("treeoverlay gives out the frame's size, or its left view's with "
-                       "views=left: set caps downstream that fit."),
-                      ("output %dx%d does not fit input %dx%d", out_w,
-                       GST_VIDEO_INFO_HEIGHT(out_info), in_w, GST_VIDEO_INFO_HEIGHT(in_info)));
+    post_caps_error(GST_ELEMENT(self),
+                    "treeoverlay gives out the frame's size, or its left view's with "
+                    "views=left: set caps downstream that fit.",
+                    nullptr,
+                    "output " + std::to_string(out_w) + "x" +
+                        std::to_string(GST_VIDEO_INFO_HEIGHT(out_info)) + " does not fit input " +
+                        std::to_string(in_w) + "x" + std::to_string(GST_VIDEO_INFO_HEIGHT(in_info)));
     return FALSE;
   }
   gst_base_transform_set_in_place(GST_BASE_TRANSFORM(self), !st->crop);

@@ -325,7 +325,10 @@ static GstFlowReturn gst_tree_test_src_fill(GstPushSrc *psrc, GstBuffer *buf)
   GstTreeTestSrc *self = GST_TREE_TEST_SRC(psrc);
   State *st = self->state;
   if (GST_VIDEO_INFO_FORMAT(&st->info) == GST_VIDEO_FORMAT_UNKNOWN) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr), ("format was not negotiated"));
+    post_caps_error(GST_ELEMENT(self),
+                    "treetestsrc was asked for a frame before its caps were agreed: link it to "
+                    "an element that takes raw video.",
+                    nullptr, "format was not negotiated");
     return GST_FLOW_NOT_NEGOTIATED;
   }
   const Settings s = snapshot(self);
