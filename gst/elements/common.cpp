@@ -544,6 +544,21 @@ static void post(GstElement *element, GstMessageType type, const ErrorCode &c,
                            debug.empty() ? nullptr : g_strdup(debug.c_str()), file, function, line);
 }
 
+void post_caps_error(GstElement *element, const std::string &message, const GstCaps *caps,
+                     const std::string &detail, const char *file, const char *function, int line)
+{
+  std::string debug;
+  if (caps) {
+    gchar *text = gst_caps_to_string(caps);
+    debug = std::string("caps ") + text;
+    g_free(text);
+  }
+  if (!detail.empty())
+    debug += (debug.empty() ? "" : "; ") + detail;
+  post(element, GST_MESSAGE_ERROR, ErrorCode{GST_CORE_ERROR, GST_CORE_ERROR_NEGOTIATION}, message,
+       debug, file, function, line);
+}
+
 void post_missing_meta(GstElement *element, GstMessageType type, GstBuffer *buf,
                        const NeededMeta &need, const char *who, const char *then, const char *file,
                        const char *function, int line)

@@ -174,7 +174,7 @@ namespace treestereo::gst {
  *   missing upstream meta, bad data from upstream   STREAM/FAILED
  *   a setting (property value, calibration) that cannot be used   RESOURCE/SETTINGS
  *   a file that cannot be read or written   RESOURCE/OPEN_READ, RESOURCE/OPEN_WRITE
- *   caps that do not fit   CORE/NEGOTIATION (posted where the caps are checked)
+ *   caps that do not fit   CORE/NEGOTIATION (post_caps_error(), where the caps are checked)
  *   anything else (an internal fault)   STREAM/FAILED */
 
 /* A meta an element needs from upstream: what a person misses, the meta, the element that adds
@@ -199,6 +199,13 @@ void post_missing_meta(GstElement *element, GstMessageType type, GstBuffer *buf,
                        const NeededMeta &need, const char *who = nullptr, const char *then = ".",
                        const char *file = __builtin_FILE(),
                        const char *function = __builtin_FUNCTION(), int line = __builtin_LINE());
+
+/* Posts that caps do not fit as CORE/NEGOTIATION, an error: @message is the sentence a person
+ * acts on (what the element needs, what to change); the debug string holds @caps (may be NULL)
+ * and @detail. Every caps check of the elements posts through this. */
+void post_caps_error(GstElement *element, const std::string &message, const GstCaps *caps,
+                     const std::string &detail = std::string(), const char *file = __builtin_FILE(),
+                     const char *function = __builtin_FUNCTION(), int line = __builtin_LINE());
 
 /* The domain and code an exception maps to (see the table above). */
 struct ErrorCode {

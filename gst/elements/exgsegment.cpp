@@ -36,6 +36,7 @@
 
 #include "common.hpp"
 #include "elements.hpp"
+#include "properties.hpp"
 
 #include "treestereo/segment.hpp"
 
@@ -55,18 +56,6 @@ using namespace treestereo::gst;
 /* The largest value any index reaches (ExG-ExR's 765): a fixed threshold above it can never be
  * exceeded, so the property stops there. */
 #define MAX_THRESHOLD 765.0
-
-enum {
-  PROP_0,
-  PROP_INDEX,
-  PROP_THRESHOLD,
-  PROP_MIN_AREA,
-  PROP_MORPH_SIZE,
-  PROP_RECONSTRUCT,
-  PROP_UNMIX_EDGES,
-  PROP_KEEP,
-  PROP_POST_MESSAGES,
-};
 
 namespace {
 
@@ -249,10 +238,11 @@ static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *incaps
   State *st = self->state;
   const PixelLayout layout = pixel_layout(GST_VIDEO_INFO_FORMAT(in_info));
   if (!layout.color) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("exgsegment needs colour frames, got %s: put videoconvert before it.",
-                       gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info))),
-                      ("caps %" GST_PTR_FORMAT, incaps));
+    post_caps_error(GST_ELEMENT(self),
+                    std::string("exgsegment needs colour frames, got ") +
+                        gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info)) +
+                        ": put videoconvert before it.",
+                    incaps);
     return FALSE;
   }
   st->order = layout.order();
@@ -260,11 +250,10 @@ static gboolean gst_exg_segment_set_info(GstVideoFilter *filter, GstCaps *incaps
   st->seg_generation = ~guint64(0); // the channel order may have changed
   const cv::Size view(GST_VIDEO_INFO_WIDTH(in_info) / st->n_views, GST_VIDEO_INFO_HEIGHT(in_info));
   if (view.width < 1) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("A side-by-side frame %d px wide has no room for two views: check the "
-                       "caps upstream.",
-                       GST_VIDEO_INFO_WIDTH(in_info)),
-                      ("caps %" GST_PTR_FORMAT, incaps));
+    post_caps_error(GST_ELEMENT(self),
+                    "A side-by-side frame " + std::to_string(GST_VIDEO_INFO_WIDTH(in_info)) +
+                        " px wide has no room for two views: check the caps upstream.",
+                    incaps);
     return FALSE;
   }
   return guarded(GST_ELEMENT(self), FALSE, [&] {
@@ -351,99 +340,13 @@ static GstFlowReturn gst_exg_segment_transform_ip(GstBaseTransform *trans, GstBu
 {
   GstExgSegment *self = GST_EXG_SEGMENT(trans);
   if (!GST_VIDEO_FILTER(trans)->negotiated) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr), ("a buffer arrived before caps"));
+    post_caps_error(GST_ELEMENT(self),
+                    "exgsegment got a frame before any caps it accepts: check the caps of the "
+                    "elements before it.",
+                    nullptr, "a buffer arrived before caps");
     return GST_FLOW_NOT_NEGOTIATED;
   }
   return guarded(GST_ELEMENT(self), GST_FLOW_ERROR, [&] { return process(self, buf); });
-}
-
-static void gst_exg_segment_set_property(GObject *object, guint prop_id, const GValue *value,
-                                         GParamSpec *pspec)
-{
-  GstExgSegment *self = GST_EXG_SEGMENT(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_INDEX:
-    s.params.index = VegIndex(g_value_get_enum(value));
-    s.generation++;
-    break;
-  case PROP_THRESHOLD:
-    s.params.threshold = g_value_get_double(value);
-    s.generation++;
-    break;
-  case PROP_MIN_AREA:
-    s.params.min_area = g_value_get_double(value);
-    s.generation++;
-    break;
-  case PROP_MORPH_SIZE:
-    s.params.morph_size = g_value_get_int(value);
-    s.generation++;
-    break;
-  case PROP_RECONSTRUCT:
-    s.params.reconstruct = g_value_get_boolean(value);
-    s.generation++;
-    break;
-  case PROP_UNMIX_EDGES:
-    s.params.unmix_edges = g_value_get_boolean(value);
-    s.generation++;
-    break;
-  case PROP_KEEP:
-    s.params.keep = KeepMode(g_value_get_enum(value));
-    s.generation++;
-    break;
-  case PROP_POST_MESSAGES:
-    s.post_messages = g_value_get_boolean(value);
-    break;
-  default:
-    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-    break;
-  }
-}
-
-static void gst_exg_segment_get_property(GObject *object, guint prop_id, GValue *value,
-                                         GParamSpec *pspec)
-{
-  GstExgSegment *self = GST_EXG_SEGMENT(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  const Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_INDEX:
-    g_value_set_enum(value, int(s.params.index));
-    break;
-  case PROP_THRESHOLD:
-    g_value_set_double(value, s.params.threshold);
-    break;
-  case PROP_MIN_AREA:
-    g_value_set_double(value, s.params.min_area);
-    break;
-  case PROP_MORPH_SIZE:
-    g_value_set_int(value, s.params.morph_size);
-    break;
-  case PROP_RECONSTRUCT:
-    g_value_set_boolean(value, s.params.reconstruct);
-    break;
-  case PROP_UNMIX_EDGES:
-    g_value_set_boolean(value, s.params.unmix_edges);
-    break;
-  case PROP_KEEP:
-    g_value_set_enum(value, int(s.params.keep));
-    break;
-  case PROP_POST_MESSAGES:
-    g_value_set_boolean(value, s.post_messages);
-    break;
-  default:
-    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-    break;
-  }
-}
-
-static void gst_exg_segment_finalize(GObject *object)
-{
-  GstExgSegment *self = GST_EXG_SEGMENT(object);
-  delete self->state;
-  self->state = nullptr;
-  G_OBJECT_CLASS(gst_exg_segment_parent_class)->finalize(object);
 }
 
 static void gst_exg_segment_class_init(GstExgSegmentClass *klass)
@@ -453,64 +356,45 @@ static void gst_exg_segment_class_init(GstExgSegmentClass *klass)
   GstBaseTransformClass *trans_class = GST_BASE_TRANSFORM_CLASS(klass);
   GstVideoFilterClass *filter_class = GST_VIDEO_FILTER_CLASS(klass);
   const SegmentParams d;
-  const GParamFlags flags =
-      GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING);
 
   GST_DEBUG_CATEGORY_INIT(exgsegment_debug, "exgsegment", 0, "treestereo exgsegment");
 
-  gobject_class->set_property = gst_exg_segment_set_property;
-  gobject_class->get_property = gst_exg_segment_get_property;
-  gobject_class->finalize = gst_exg_segment_finalize;
+  gobject_class->finalize = finalize_state<GstExgSegment, &gst_exg_segment_parent_class>;
 
-  g_object_class_install_property(
-      gobject_class, PROP_INDEX,
-      g_param_spec_enum("index", "Index",
-                        "Colour vegetation index (see docs/segmentation.md for their units)",
-                        gst_exg_segment_index_get_type(), int(d.index), flags));
-  g_object_class_install_property(
-      gobject_class, PROP_THRESHOLD,
-      g_param_spec_double("threshold", "Threshold",
-                          "Index threshold in the index's units (exg -510..510, exg-exr "
-                          "-867..765, exg-norm -1..2, exg-exr-norm -2.4..3); a pixel is canopy "
-                          "above it. -1 = Otsu's threshold per view (fixed thresholds are >= 0)",
-                          -1.0, MAX_THRESHOLD, DEFAULT_THRESHOLD, flags));
-  g_object_class_install_property(
-      gobject_class, PROP_MIN_AREA,
-      g_param_spec_double("min-area", "Minimum area",
-                          "Regions smaller than this (px) are not canopy", 0.0, G_MAXDOUBLE,
-                          d.min_area, flags));
-  g_object_class_install_property(
-      gobject_class, PROP_MORPH_SIZE,
-      g_param_spec_int("morph-size", "Morphology size",
-                       "Diameter (px, made odd) of the open-then-close element that removes "
-                       "specks and fills narrow gaps; 0 = off",
-                       0, 255, d.morph_size, flags));
-  g_object_class_install_property(
-      gobject_class, PROP_RECONSTRUCT,
-      g_param_spec_boolean("reconstruct", "Reconstruct",
-                           "Opening by reconstruction: a region the opening keeps gets its whole "
-                           "thresholded shape back (leaf tips), specks stay removed; false = the "
-                           "plain opening, which shaves details narrower than morph-size",
-                           d.reconstruct, flags));
-  g_object_class_install_property(
-      gobject_class, PROP_UNMIX_EDGES,
-      g_param_spec_boolean("unmix-edges", "Unmix edges",
-                           "Decide the pixels on the canopy's boundary by how much of each is "
-                           "leaf (linear unmixing between the canopy and background colours "
-                           "around it, canopy from half up) instead of by the threshold, which "
-                           "drops edge pixels mixed with bright sky; false = thresholded edges",
-                           d.unmix_edges, flags));
-  g_object_class_install_property(
-      gobject_class, PROP_KEEP,
-      g_param_spec_enum("keep", "Keep",
-                        "Which connected regions make the vegetation mask: all (default; "
-                        "stereodepth's canopy picks the tree in 3D) or the largest",
-                        gst_exg_segment_keep_get_type(), int(d.keep), flags));
-  g_object_class_install_property(
-      gobject_class, PROP_POST_MESSAGES,
-      g_param_spec_boolean("post-messages", "Post messages",
-                           "Post an exgsegment element message per frame", DEFAULT_POST_MESSAGES,
-                           flags));
+  auto props = PropertyTable<Settings>::in_state<GstExgSegment>(gobject_class);
+  props.after_set([](Settings &s) { s.generation++; }); // the segmenters are made again
+  props.enumeration("index", "Index",
+                    "Colour vegetation index (see docs/segmentation.md for their units)",
+                    gst_exg_segment_index_get_type(), int(d.index), TS_FIELD(params.index));
+  props.real("threshold", "Threshold",
+             "Index threshold in the index's units (exg -510..510, exg-exr -867..765, exg-norm "
+             "-1..2, exg-exr-norm -2.4..3); a pixel is canopy above it. -1 = Otsu's threshold per "
+             "view (fixed thresholds are >= 0)",
+             -1.0, MAX_THRESHOLD, DEFAULT_THRESHOLD, TS_FIELD(params.threshold));
+  props.real("min-area", "Minimum area", "Regions smaller than this (px) are not canopy", 0.0,
+             G_MAXDOUBLE, d.min_area, TS_FIELD(params.min_area));
+  props.integer("morph-size", "Morphology size",
+                "Diameter (px, made odd) of the open-then-close element that removes specks and "
+                "fills narrow gaps; 0 = off",
+                0, 255, d.morph_size, TS_FIELD(params.morph_size));
+  props.boolean("reconstruct", "Reconstruct",
+                "Opening by reconstruction: a region the opening keeps gets its whole "
+                "thresholded shape back (leaf tips), specks stay removed; false = the plain "
+                "opening, which shaves details narrower than morph-size",
+                d.reconstruct, TS_FIELD(params.reconstruct));
+  props.boolean("unmix-edges", "Unmix edges",
+                "Decide the pixels on the canopy's boundary by how much of each is leaf (linear "
+                "unmixing between the canopy and background colours around it, canopy from half "
+                "up) instead of by the threshold, which drops edge pixels mixed with bright sky; "
+                "false = thresholded edges",
+                d.unmix_edges, TS_FIELD(params.unmix_edges));
+  props.enumeration("keep", "Keep",
+                    "Which connected regions make the vegetation mask: all (default; "
+                    "stereodepth's canopy picks the tree in 3D) or the largest",
+                    gst_exg_segment_keep_get_type(), int(d.keep), TS_FIELD(params.keep));
+  props.after_set(nullptr);
+  props.boolean("post-messages", "Post messages", "Post an exgsegment element message per frame",
+                DEFAULT_POST_MESSAGES, TS_FIELD(post_messages));
 
   gst_element_class_add_static_pad_template(element_class, &sink_template);
   gst_element_class_add_static_pad_template(element_class, &src_template);

@@ -71,6 +71,7 @@
 
 #include "common.hpp"
 #include "elements.hpp"
+#include "properties.hpp"
 
 #include "treestereo/match.hpp"
 #include "treestereo/presets.hpp"
@@ -86,6 +87,7 @@ GST_DEBUG_CATEGORY_STATIC(siftmatch_debug);
 #define GST_CAT_DEFAULT siftmatch_debug
 
 using namespace treestereo;
+using namespace treestereo::gst;
 
 /* Defaults: lib's SiftmatchPreset (treestereo/presets.hpp), which benches and tools share; see
  * docs/elements/siftmatch.md for the measurements behind them. The element's own: */
@@ -94,36 +96,6 @@ using namespace treestereo;
 #define DEFAULT_SCALE 0.0            /* automatic: SiftmatchPreset::auto_scale */
 #define DEFAULT_POST_MESSAGES TRUE
 #define MAX_DISPARITY_LIMIT 100000.0
-
-enum {
-  PROP_0,
-  PROP_METHOD,
-  PROP_RATIO,
-  PROP_CANDIDATES,
-  PROP_EPIPOLAR_TOLERANCE,
-  PROP_MIN_DISPARITY,
-  PROP_MAX_DISPARITY,
-  PROP_MIN_DEPTH,
-  PROP_MAX_DEPTH,
-  PROP_MUTUAL,
-  PROP_NFEATURES,
-  PROP_CONTRAST_THRESHOLD,
-  PROP_SCALE,
-  PROP_USE_MASK,
-  PROP_UPRIGHT,
-  PROP_MASK_INSET,
-  PROP_REFINE,
-  PROP_MIN_ZNCC,
-  PROP_MIN_ZNCC_DROP,
-  PROP_LAYER_TOLERANCE,
-  PROP_LAYER_WINDOW,
-  PROP_LAYER_SEARCH,
-  PROP_LAYER_CENTRE_TOLERANCE,
-  PROP_LAYER_MIN_ZNCC,
-  PROP_LAYER_CENTRE_MIN_ZNCC,
-  PROP_RELOCATE,
-  PROP_POST_MESSAGES,
-};
 
 namespace {
 
@@ -429,10 +401,10 @@ static gboolean gst_sift_match_set_info(GstVideoFilter *filter, GstCaps *incaps,
                                         GstVideoInfo *out_info)
 {
   if (treestereo::gst::n_views_of(in_info) != 2) {
-    GST_ELEMENT_ERROR(filter, CORE, NEGOTIATION,
-                      ("siftmatch needs side-by-side stereo frames (multiview-mode=side-by-side) "
-                       "from stereorectify"),
-                      ("caps %" GST_PTR_FORMAT, incaps));
+    post_caps_error(GST_ELEMENT(filter),
+                    "siftmatch needs side-by-side stereo frames (multiview-mode=side-by-side) "
+                    "from stereorectify",
+                    incaps);
     return FALSE;
   }
   return TRUE;
@@ -453,214 +425,6 @@ static gboolean gst_sift_match_stop(GstBaseTransform *trans)
   return TRUE;
 }
 
-static void gst_sift_match_set_property(GObject *object, guint prop_id, const GValue *value,
-                                        GParamSpec *pspec)
-{
-  GstSiftMatch *self = GST_SIFT_MATCH(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_METHOD:
-    s.method = GstTreeStereoMatchMethod(g_value_get_enum(value));
-    break;
-  case PROP_RATIO:
-    s.ratio = g_value_get_double(value);
-    break;
-  case PROP_CANDIDATES:
-    s.candidates = g_value_get_int(value);
-    break;
-  case PROP_EPIPOLAR_TOLERANCE:
-    s.epipolar_tolerance = g_value_get_double(value);
-    break;
-  case PROP_MIN_DISPARITY:
-    s.min_disparity = g_value_get_double(value);
-    break;
-  case PROP_MAX_DISPARITY:
-    s.max_disparity = g_value_get_double(value);
-    break;
-  case PROP_MIN_DEPTH:
-    s.min_depth = g_value_get_double(value);
-    break;
-  case PROP_MAX_DEPTH:
-    s.max_depth = g_value_get_double(value);
-    break;
-  case PROP_MUTUAL:
-    s.mutual = g_value_get_boolean(value);
-    break;
-  case PROP_NFEATURES:
-    s.nfeatures = g_value_get_int(value);
-    break;
-  case PROP_CONTRAST_THRESHOLD:
-    s.contrast_threshold = g_value_get_double(value);
-    break;
-  case PROP_SCALE:
-    s.scale = g_value_get_double(value);
-    break;
-  case PROP_USE_MASK:
-    s.use_mask = g_value_get_boolean(value);
-    break;
-  case PROP_UPRIGHT:
-    s.upright = g_value_get_boolean(value);
-    break;
-  case PROP_MASK_INSET:
-    s.mask_inset = g_value_get_int(value);
-    break;
-  case PROP_REFINE:
-    s.refine = g_value_get_boolean(value);
-    break;
-  case PROP_MIN_ZNCC:
-    s.min_zncc = g_value_get_double(value);
-    break;
-  case PROP_MIN_ZNCC_DROP:
-    s.min_zncc_drop = g_value_get_double(value);
-    break;
-  case PROP_LAYER_CENTRE_TOLERANCE:
-    s.layer_centre_tolerance = g_value_get_double(value);
-    break;
-  case PROP_LAYER_MIN_ZNCC:
-    s.layer_min_zncc = g_value_get_double(value);
-    break;
-  case PROP_LAYER_CENTRE_MIN_ZNCC:
-    s.layer_centre_min_zncc = g_value_get_double(value);
-    break;
-  case PROP_LAYER_TOLERANCE:
-    s.layer_tolerance = g_value_get_double(value);
-    break;
-  case PROP_LAYER_WINDOW:
-    s.layer_window = g_value_get_int(value);
-    break;
-  case PROP_LAYER_SEARCH:
-    s.layer_search = g_value_get_int(value);
-    break;
-  case PROP_RELOCATE:
-    s.relocate = g_value_get_int(value);
-    break;
-  case PROP_POST_MESSAGES:
-    s.post_messages = g_value_get_boolean(value);
-    return; // no new matcher needed
-  default:
-    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-    return;
-  }
-  s.generation++;
-}
-
-static void gst_sift_match_get_property(GObject *object, guint prop_id, GValue *value,
-                                        GParamSpec *pspec)
-{
-  GstSiftMatch *self = GST_SIFT_MATCH(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  const Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_METHOD:
-    g_value_set_enum(value, s.method);
-    break;
-  case PROP_RATIO:
-    g_value_set_double(value, s.ratio);
-    break;
-  case PROP_CANDIDATES:
-    g_value_set_int(value, s.candidates);
-    break;
-  case PROP_EPIPOLAR_TOLERANCE:
-    g_value_set_double(value, s.epipolar_tolerance);
-    break;
-  case PROP_MIN_DISPARITY:
-    g_value_set_double(value, s.min_disparity);
-    break;
-  case PROP_MAX_DISPARITY:
-    g_value_set_double(value, s.max_disparity);
-    break;
-  case PROP_MIN_DEPTH:
-    g_value_set_double(value, s.min_depth);
-    break;
-  case PROP_MAX_DEPTH:
-    g_value_set_double(value, s.max_depth);
-    break;
-  case PROP_MUTUAL:
-    g_value_set_boolean(value, s.mutual);
-    break;
-  case PROP_NFEATURES:
-    g_value_set_int(value, s.nfeatures);
-    break;
-  case PROP_CONTRAST_THRESHOLD:
-    g_value_set_double(value, s.contrast_threshold);
-    break;
-  case PROP_SCALE:
-    g_value_set_double(value, s.scale);
-    break;
-  case PROP_USE_MASK:
-    g_value_set_boolean(value, s.use_mask);
-    break;
-  case PROP_UPRIGHT:
-    g_value_set_boolean(value, s.upright);
-    break;
-  case PROP_MASK_INSET:
-    g_value_set_int(value, s.mask_inset);
-    break;
-  case PROP_REFINE:
-    g_value_set_boolean(value, s.refine);
-    break;
-  case PROP_MIN_ZNCC:
-    g_value_set_double(value, s.min_zncc);
-    break;
-  case PROP_MIN_ZNCC_DROP:
-    g_value_set_double(value, s.min_zncc_drop);
-    break;
-  case PROP_LAYER_CENTRE_TOLERANCE:
-    g_value_set_double(value, s.layer_centre_tolerance);
-    break;
-  case PROP_LAYER_MIN_ZNCC:
-    g_value_set_double(value, s.layer_min_zncc);
-    break;
-  case PROP_LAYER_CENTRE_MIN_ZNCC:
-    g_value_set_double(value, s.layer_centre_min_zncc);
-    break;
-  case PROP_LAYER_TOLERANCE:
-    g_value_set_double(value, s.layer_tolerance);
-    break;
-  case PROP_LAYER_WINDOW:
-    g_value_set_int(value, s.layer_window);
-    break;
-  case PROP_LAYER_SEARCH:
-    g_value_set_int(value, s.layer_search);
-    break;
-  case PROP_RELOCATE:
-    g_value_set_int(value, s.relocate);
-    break;
-  case PROP_POST_MESSAGES:
-    g_value_set_boolean(value, s.post_messages);
-    break;
-  default:
-    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-    break;
-  }
-}
-
-static void gst_sift_match_finalize(GObject *object)
-{
-  GstSiftMatch *self = GST_SIFT_MATCH(object);
-  delete self->state;
-  self->state = nullptr;
-  G_OBJECT_CLASS(gst_sift_match_parent_class)->finalize(object);
-}
-
-#define PROP_FLAGS \
-  GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)
-
-static void install_double(GObjectClass *klass, guint id, const char *name, const char *nick,
-                           const char *blurb, double min, double max, double def)
-{
-  g_object_class_install_property(klass, id,
-                                  g_param_spec_double(name, nick, blurb, min, max, def, PROP_FLAGS));
-}
-
-static void install_boolean(GObjectClass *klass, guint id, const char *name, const char *nick,
-                            const char *blurb, gboolean def)
-{
-  g_object_class_install_property(klass, id,
-                                  g_param_spec_boolean(name, nick, blurb, def, PROP_FLAGS));
-}
-
 static void gst_sift_match_class_init(GstSiftMatchClass *klass)
 {
   GObjectClass *gobject_class = G_OBJECT_CLASS(klass);
@@ -671,130 +435,114 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
 
   GST_DEBUG_CATEGORY_INIT(siftmatch_debug, "siftmatch", 0, "treestereo siftmatch");
 
-  gobject_class->set_property = gst_sift_match_set_property;
-  gobject_class->get_property = gst_sift_match_get_property;
-  gobject_class->finalize = gst_sift_match_finalize;
+  gobject_class->finalize = finalize_state<GstSiftMatch, &gst_sift_match_parent_class>;
 
-  g_object_class_install_property(
-      gobject_class, PROP_METHOD,
-      g_param_spec_enum("method", "Method",
-                        "How a keypoint's partner is chosen among the "
-                        "candidates that satisfy the stereo constraints",
-                        GST_TYPE_SIFT_MATCH_METHOD,
-                        treestereo::gst::match_method_to_gst(d.matcher.method), PROP_FLAGS));
-  install_double(gobject_class, PROP_RATIO, "ratio", "Ratio",
-                 "Ratio test: keep a match only when its distance (euclidean) or angle "
-                 "(cosine-norm) is below ratio x the second best's; 1 turns the test off",
-                 0.01, 1.0, d.matcher.ratio);
-  g_object_class_install_property(
-      gobject_class, PROP_CANDIDATES,
-      g_param_spec_int("candidates", "Candidates",
-                       "cosine-norm: how many smallest angles compete on the norm difference",
-                       1, 128, d.matcher.candidates, PROP_FLAGS));
-  install_double(gobject_class, PROP_EPIPOLAR_TOLERANCE, "epipolar-tolerance",
-                 "Epipolar tolerance",
-                 "Largest row difference |yl - yr| (px) of a candidate; negative = no epipolar "
-                 "constraint (every keypoint of the other view is a candidate)",
-                 -1.0, 1000.0, d.matcher.constraints.epipolar_tolerance);
-  install_double(gobject_class, PROP_MIN_DISPARITY, "min-disparity", "Minimum disparity",
-                 "Smallest disparity xl - xr (px); -1 = from max-depth and the stereo geometry",
-                 -1.0, MAX_DISPARITY_LIMIT, DEFAULT_MIN_DISPARITY);
-  install_double(gobject_class, PROP_MAX_DISPARITY, "max-disparity", "Maximum disparity",
-                 "Largest disparity xl - xr (px); -1 = from min-depth and the stereo geometry",
-                 -1.0, MAX_DISPARITY_LIMIT, DEFAULT_MAX_DISPARITY);
-  install_double(gobject_class, PROP_MIN_DEPTH, "min-depth", "Minimum depth",
-                 "Nearest depth (mm) searched when max-disparity is -1", 1.0, 1e6,
-                 SiftmatchPreset::kMinDepthMm);
-  install_double(gobject_class, PROP_MAX_DEPTH, "max-depth", "Maximum depth",
-                 "Farthest depth (mm) searched when min-disparity is -1", 1.0, 1e7,
-                 SiftmatchPreset::kMaxDepthMm);
-  install_boolean(gobject_class, PROP_MUTUAL, "mutual", "Mutual",
-                  "Keep a match only when matching back from the other view picks the same pair",
-                  d.matcher.constraints.mutual);
-  g_object_class_install_property(
-      gobject_class, PROP_NFEATURES,
-      g_param_spec_int("nfeatures", "Features", "Keep the N strongest keypoints per view; 0 = all",
-                       0, G_MAXINT, d.detect.nfeatures, PROP_FLAGS));
-  install_double(gobject_class, PROP_CONTRAST_THRESHOLD, "contrast-threshold",
-                 "Contrast threshold", "SIFT's contrast threshold (larger: fewer, stronger "
-                 "keypoints)", 0.001, 1.0, d.detect.contrast_threshold);
-  install_double(gobject_class, PROP_SCALE, "scale", "Scale",
-                 "Detect on the views resized by this factor (keypoints are reported and "
-                 "refined at full resolution); 0 = automatic: 1, 1/2, 1/4... whichever first "
-                 "brings a view to 648 px wide or less",
-                 0.0, 1.0, DEFAULT_SCALE);
-  install_boolean(gobject_class, PROP_USE_MASK, "use-mask", "Use mask",
-                  "Detect only inside the canopy of the vegetation meta (when there is one)",
-                  d.detect.use_mask);
-  install_boolean(gobject_class, PROP_UPRIGHT, "upright", "Upright",
-                  "Describe each keypoint once, at angle 0, with treestereo's own SIFT (on "
-                  "rectified views the rows are the epipolar lines: no orientation is needed), "
-                  "and only those with a candidate in the other view; false: OpenCV's SIFT, one "
-                  "descriptor per dominant orientation",
-                  d.detect.engine == SiftEngine::Upright);
-  g_object_class_install_property(
-      gobject_class, PROP_MASK_INSET, g_param_spec_int(
-          "mask-inset", "Mask inset",
-          "With use-mask: keep no keypoint within this many px (of the detection image, see "
-          "scale) of the canopy's edge, where the descriptor window straddles the background; "
-          "0 = the whole canopy",
-          0, 64, d.detect.mask_inset, PROP_FLAGS));
-  install_boolean(gobject_class, PROP_REFINE, "refine", "Refine",
-                  "Refine each disparity to sub-pixel by correlation at full resolution and "
-                  "drop matches without a clear correlation peak",
-                  d.refine);
-  install_double(gobject_class, PROP_MIN_ZNCC, "min-zncc", "Minimum ZNCC",
-                 "Refinement: drop a match whose 7x7 correlation peak is below this", -1.0, 1.0,
-                 d.refine_params.min_zncc);
-  install_double(gobject_class, PROP_MIN_ZNCC_DROP, "min-zncc-drop", "Minimum ZNCC drop",
-                 "Refinement: drop a match whose 7x7 correlation stays within this of its peak "
-                 "over the whole search (+-3 px): a horizontal edge or a patch without horizontal "
-                 "structure correlates about as well at every position; 0 = off",
-                 0.0, 2.0, d.refine_params.min_zncc_drop);
-  install_double(gobject_class, PROP_LAYER_TOLERANCE, "layer-tolerance", "Layer tolerance",
-                 "Two-layer test after refinement: the four quadrants of the layer window and "
-                 "its 3x3 centre, each correlated on its own, must all peak within this many px "
-                 "of the refined disparity (rejects keypoints beside a depth edge that took the "
-                 "foreground's disparity); negative = off (needs refine)",
-                 -1.0, 100.0, d.refine_params.layer_tolerance);
-  g_object_class_install_property(
-      gobject_class, PROP_LAYER_WINDOW,
-      g_param_spec_int("layer-window", "Layer window",
-                       "Two-layer test: half size of its window (px at full resolution for a "
-                       "detection scale >= 0.5, times 0.5 / scale below it; 5 = 11x11, "
-                       "quadrants of 6x6)",
-                       1, 32, d.refine_params.layer_half_window, PROP_FLAGS));
-  g_object_class_install_property(
-      gobject_class, PROP_LAYER_SEARCH,
-      g_param_spec_int("layer-search", "Layer search",
-                       "Two-layer test: how far (px) each part is searched around the refined "
-                       "disparity",
-                       1, 32, d.refine_params.layer_search, PROP_FLAGS));
-  install_double(gobject_class, PROP_LAYER_CENTRE_TOLERANCE, "layer-centre-tolerance",
-                 "Layer centre tolerance",
-                 "Two-layer test: the tolerance (px) of the 3x3 centre's peak, whose 9 pixels "
-                 "place it less precisely than a quadrant's; negative = layer-tolerance",
-                 -1.0, 100.0, d.refine_params.layer_centre_tolerance);
-  install_double(gobject_class, PROP_LAYER_MIN_ZNCC, "layer-min-zncc", "Layer minimum ZNCC",
-                 "Two-layer test: each quadrant's correlation at the refined disparity must reach "
-                 "this (a part of the window on another depth layer, or hidden in the right "
-                 "view, correlates poorly there); -1 = no minimum",
-                 -1.0, 1.0, d.refine_params.layer_min_zncc);
-  install_double(gobject_class, PROP_LAYER_CENTRE_MIN_ZNCC, "layer-centre-min-zncc",
-                 "Layer centre minimum ZNCC",
-                 "Two-layer test: the 3x3 centre's correlation at the refined disparity must "
-                 "reach this; -1 = no minimum",
-                 -1.0, 1.0, d.refine_params.layer_centre_min_zncc);
-  g_object_class_install_property(
-      gobject_class, PROP_RELOCATE,
-      g_param_spec_int("relocate", "Relocate",
-                       "Refinement: move each match, by at most this many px, to the pixel its "
-                       "disparity belongs to (the one whose 3x3 patch agrees best with the right "
-                       "view at that disparity), e.g. off a dark gap between two near leaves "
-                       "onto a leaf; 0 = off (needs refine)",
-                       0, 3, d.refine_params.relocate, PROP_FLAGS));
-  install_boolean(gobject_class, PROP_POST_MESSAGES, "post-messages", "Post messages",
-                  "Post a siftmatch element message per frame", DEFAULT_POST_MESSAGES);
+  auto props = PropertyTable<Settings>::in_state<GstSiftMatch>(gobject_class);
+  props.after_set([](Settings &s) { s.generation++; }); // a new matcher is made
+  props.enumeration("method", "Method",
+                    "How a keypoint's partner is chosen among the "
+                    "candidates that satisfy the stereo constraints",
+                    GST_TYPE_SIFT_MATCH_METHOD,
+                    treestereo::gst::match_method_to_gst(d.matcher.method), TS_FIELD(method));
+  props.real("ratio", "Ratio",
+             "Ratio test: keep a match only when its distance (euclidean) or angle "
+             "(cosine-norm) is below ratio x the second best's; 1 turns the test off",
+             0.01, 1.0, d.matcher.ratio, TS_FIELD(ratio));
+  props.integer("candidates", "Candidates",
+                "cosine-norm: how many smallest angles compete on the norm difference", 1, 128,
+                d.matcher.candidates, TS_FIELD(candidates));
+  props.real("epipolar-tolerance", "Epipolar tolerance",
+             "Largest row difference |yl - yr| (px) of a candidate; negative = no epipolar "
+             "constraint (every keypoint of the other view is a candidate)",
+             -1.0, 1000.0, d.matcher.constraints.epipolar_tolerance, TS_FIELD(epipolar_tolerance));
+  props.real("min-disparity", "Minimum disparity",
+             "Smallest disparity xl - xr (px); -1 = from max-depth and the stereo geometry", -1.0,
+             MAX_DISPARITY_LIMIT, DEFAULT_MIN_DISPARITY, TS_FIELD(min_disparity));
+  props.real("max-disparity", "Maximum disparity",
+             "Largest disparity xl - xr (px); -1 = from min-depth and the stereo geometry", -1.0,
+             MAX_DISPARITY_LIMIT, DEFAULT_MAX_DISPARITY, TS_FIELD(max_disparity));
+  props.real("min-depth", "Minimum depth", "Nearest depth (mm) searched when max-disparity is -1",
+             1.0, 1e6, SiftmatchPreset::kMinDepthMm, TS_FIELD(min_depth));
+  props.real("max-depth", "Maximum depth", "Farthest depth (mm) searched when min-disparity is -1",
+             1.0, 1e7, SiftmatchPreset::kMaxDepthMm, TS_FIELD(max_depth));
+  props.boolean("mutual", "Mutual",
+                "Keep a match only when matching back from the other view picks the same pair",
+                d.matcher.constraints.mutual, TS_FIELD(mutual));
+  props.integer("nfeatures", "Features", "Keep the N strongest keypoints per view; 0 = all", 0,
+                G_MAXINT, d.detect.nfeatures, TS_FIELD(nfeatures));
+  props.real("contrast-threshold", "Contrast threshold",
+             "SIFT's contrast threshold (larger: fewer, stronger "
+             "keypoints)",
+             0.001, 1.0, d.detect.contrast_threshold, TS_FIELD(contrast_threshold));
+  props.real("scale", "Scale",
+             "Detect on the views resized by this factor (keypoints are reported and "
+             "refined at full resolution); 0 = automatic: 1, 1/2, 1/4... whichever first "
+             "brings a view to 648 px wide or less",
+             0.0, 1.0, DEFAULT_SCALE, TS_FIELD(scale));
+  props.boolean("use-mask", "Use mask",
+                "Detect only inside the canopy of the vegetation meta (when there is one)",
+                d.detect.use_mask, TS_FIELD(use_mask));
+  props.boolean("upright", "Upright",
+                "Describe each keypoint once, at angle 0, with treestereo's own SIFT (on "
+                "rectified views the rows are the epipolar lines: no orientation is needed), "
+                "and only those with a candidate in the other view; false: OpenCV's SIFT, one "
+                "descriptor per dominant orientation",
+                d.detect.engine == SiftEngine::Upright, TS_FIELD(upright));
+  props.integer(
+      "mask-inset", "Mask inset",
+      "With use-mask: keep no keypoint within this many px (of the detection image, see "
+      "scale) of the canopy's edge, where the descriptor window straddles the background; "
+      "0 = the whole canopy",
+      0, 64, d.detect.mask_inset, TS_FIELD(mask_inset));
+  props.boolean("refine", "Refine",
+                "Refine each disparity to sub-pixel by correlation at full resolution and "
+                "drop matches without a clear correlation peak",
+                d.refine, TS_FIELD(refine));
+  props.real("min-zncc", "Minimum ZNCC",
+             "Refinement: drop a match whose 7x7 correlation peak is below this", -1.0, 1.0,
+             d.refine_params.min_zncc, TS_FIELD(min_zncc));
+  props.real("min-zncc-drop", "Minimum ZNCC drop",
+             "Refinement: drop a match whose 7x7 correlation stays within this of its peak "
+             "over the whole search (+-3 px): a horizontal edge or a patch without horizontal "
+             "structure correlates about as well at every position; 0 = off",
+             0.0, 2.0, d.refine_params.min_zncc_drop, TS_FIELD(min_zncc_drop));
+  props.real("layer-tolerance", "Layer tolerance",
+             "Two-layer test after refinement: the four quadrants of the layer window and "
+             "its 3x3 centre, each correlated on its own, must all peak within this many px "
+             "of the refined disparity (rejects keypoints beside a depth edge that took the "
+             "foreground's disparity); negative = off (needs refine)",
+             -1.0, 100.0, d.refine_params.layer_tolerance, TS_FIELD(layer_tolerance));
+  props.integer("layer-window", "Layer window",
+                "Two-layer test: half size of its window (px at full resolution for a "
+                "detection scale >= 0.5, times 0.5 / scale below it; 5 = 11x11, "
+                "quadrants of 6x6)",
+                1, 32, d.refine_params.layer_half_window, TS_FIELD(layer_window));
+  props.integer("layer-search", "Layer search",
+                "Two-layer test: how far (px) each part is searched around the refined "
+                "disparity",
+                1, 32, d.refine_params.layer_search, TS_FIELD(layer_search));
+  props.real("layer-centre-tolerance", "Layer centre tolerance",
+             "Two-layer test: the tolerance (px) of the 3x3 centre's peak, whose 9 pixels "
+             "place it less precisely than a quadrant's; negative = layer-tolerance",
+             -1.0, 100.0, d.refine_params.layer_centre_tolerance, TS_FIELD(layer_centre_tolerance));
+  props.real("layer-min-zncc", "Layer minimum ZNCC",
+             "Two-layer test: each quadrant's correlation at the refined disparity must reach "
+             "this (a part of the window on another depth layer, or hidden in the right "
+             "view, correlates poorly there); -1 = no minimum",
+             -1.0, 1.0, d.refine_params.layer_min_zncc, TS_FIELD(layer_min_zncc));
+  props.real("layer-centre-min-zncc", "Layer centre minimum ZNCC",
+             "Two-layer test: the 3x3 centre's correlation at the refined disparity must "
+             "reach this; -1 = no minimum",
+             -1.0, 1.0, d.refine_params.layer_centre_min_zncc, TS_FIELD(layer_centre_min_zncc));
+  props.integer("relocate", "Relocate",
+                "Refinement: move each match, by at most this many px, to the pixel its "
+                "disparity belongs to (the one whose 3x3 patch agrees best with the right "
+                "view at that disparity), e.g. off a dark gap between two near leaves "
+                "onto a leaf; 0 = off (needs refine)",
+                0, 3, d.refine_params.relocate, TS_FIELD(relocate));
+  props.after_set(nullptr);
+  props.boolean("post-messages", "Post messages", "Post a siftmatch element message per frame",
+                DEFAULT_POST_MESSAGES, TS_FIELD(post_messages));
 
   gst_element_class_add_static_pad_template(element_class, &sink_template);
   gst_element_class_add_static_pad_template(element_class, &src_template);

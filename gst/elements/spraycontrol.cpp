@@ -33,6 +33,7 @@
 
 #include "common.hpp"
 #include "elements.hpp"
+#include "properties.hpp"
 
 #include "treestereo/rowmap.hpp"
 #include "treestereo/spray.hpp"
@@ -49,6 +50,7 @@ GST_DEBUG_CATEGORY_STATIC(spraycontrol_debug);
 #define GST_CAT_DEFAULT spraycontrol_debug
 
 using namespace treestereo;
+using namespace treestereo::gst;
 
 typedef enum {
   GST_SPRAY_CONTROL_RATE_ONOFF = 0,
@@ -105,21 +107,6 @@ static GType gst_spray_control_fallback_get_type(void)
 #define DEFAULT_HOLD_TIME 500
 #define DEFAULT_FALLBACK GST_SPRAY_CONTROL_FALLBACK_ON
 #define DEFAULT_POST_MESSAGES TRUE
-
-enum {
-  PROP_0,
-  PROP_SECTIONS,
-  PROP_SECTION_HEIGHTS,
-  PROP_NOZZLE_OFFSET,
-  PROP_VALVE_LATENCY,
-  PROP_MIN_GAP,
-  PROP_MIN_CANOPY,
-  PROP_RATE_MODEL,
-  PROP_HOLD_TIME,
-  PROP_FALLBACK,
-  PROP_POST_MESSAGES,
-  PROP_TIMELINE_LOCATION,
-};
 
 namespace {
 
@@ -520,64 +507,6 @@ static gboolean gst_spray_control_stop(GstBaseTransform *trans)
   return TRUE;
 }
 
-static void gst_spray_control_set_property(GObject *object, guint prop_id, const GValue *value,
-                                           GParamSpec *pspec)
-{
-  GstSprayControl *self = GST_SPRAY_CONTROL(object);
-  GST_OBJECT_LOCK(self);
-  Settings &s = self->settings;
-  switch (prop_id) {
-  case PROP_SECTIONS: s.sections = g_value_get_uint(value); break;
-  case PROP_SECTION_HEIGHTS: {
-    const gchar *v = g_value_get_string(value);
-    s.section_heights = v ? v : "";
-    break;
-  }
-  case PROP_NOZZLE_OFFSET: s.nozzle_offset = g_value_get_double(value); break;
-  case PROP_VALVE_LATENCY: s.valve_latency = g_value_get_uint(value); break;
-  case PROP_MIN_GAP: s.min_gap = g_value_get_double(value); break;
-  case PROP_MIN_CANOPY: s.min_canopy = g_value_get_double(value); break;
-  case PROP_RATE_MODEL: s.rate_model = GstSprayControlRateModel(g_value_get_enum(value)); break;
-  case PROP_HOLD_TIME: s.hold_time = g_value_get_uint(value); break;
-  case PROP_FALLBACK: s.fallback = GstSprayControlFallback(g_value_get_enum(value)); break;
-  case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
-  case PROP_TIMELINE_LOCATION: {
-    const gchar *v = g_value_get_string(value);
-    s.timeline_location = v ? v : "";
-    break;
-  }
-  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
-  }
-  GST_OBJECT_UNLOCK(self);
-}
-
-static void gst_spray_control_get_property(GObject *object, guint prop_id, GValue *value,
-                                           GParamSpec *pspec)
-{
-  GstSprayControl *self = GST_SPRAY_CONTROL(object);
-  GST_OBJECT_LOCK(self);
-  const Settings &s = self->settings;
-  switch (prop_id) {
-  case PROP_SECTIONS: g_value_set_uint(value, s.sections); break;
-  case PROP_SECTION_HEIGHTS:
-    g_value_set_string(value, s.section_heights.empty() ? nullptr : s.section_heights.c_str());
-    break;
-  case PROP_NOZZLE_OFFSET: g_value_set_double(value, s.nozzle_offset); break;
-  case PROP_VALVE_LATENCY: g_value_set_uint(value, s.valve_latency); break;
-  case PROP_MIN_GAP: g_value_set_double(value, s.min_gap); break;
-  case PROP_MIN_CANOPY: g_value_set_double(value, s.min_canopy); break;
-  case PROP_RATE_MODEL: g_value_set_enum(value, s.rate_model); break;
-  case PROP_HOLD_TIME: g_value_set_uint(value, s.hold_time); break;
-  case PROP_FALLBACK: g_value_set_enum(value, s.fallback); break;
-  case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
-  case PROP_TIMELINE_LOCATION:
-    g_value_set_string(value, s.timeline_location.empty() ? nullptr : s.timeline_location.c_str());
-    break;
-  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
-  }
-  GST_OBJECT_UNLOCK(self);
-}
-
 static void gst_spray_control_finalize(GObject *object)
 {
   GstSprayControl *self = GST_SPRAY_CONTROL(object);
@@ -591,11 +520,6 @@ static void gst_spray_control_finalize(GObject *object)
 }
 
 /* Read when the stream's first frame starts the plan: changes apply from the next start. */
-#define RW_READY \
-  GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_READY)
-#define RW_PLAYING \
-  GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)
-
 static void gst_spray_control_class_init(GstSprayControlClass *klass)
 {
   GObjectClass *gobject_class = G_OBJECT_CLASS(klass);
@@ -604,68 +528,46 @@ static void gst_spray_control_class_init(GstSprayControlClass *klass)
 
   GST_DEBUG_CATEGORY_INIT(spraycontrol_debug, "spraycontrol", 0, "treestereo spraycontrol");
 
-  gobject_class->set_property = gst_spray_control_set_property;
-  gobject_class->get_property = gst_spray_control_get_property;
   gobject_class->finalize = gst_spray_control_finalize;
 
-  g_object_class_install_property(
-      gobject_class, PROP_SECTIONS,
-      g_param_spec_uint("sections", "Sections",
-                        "Nozzle sections; 0 = one per height band of the row map (or one per "
-                        "section-heights range); another count must match those",
-                        0, 256, DEFAULT_SECTIONS, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_SECTION_HEIGHTS,
-      g_param_spec_string("section-heights", "Section heights",
-                          "Each section's height range above the ground (m), lowest first: "
-                          "\"0.4:0.7,0.7:1.0,...\"; NULL = one section per band of the row map",
-                          nullptr, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_NOZZLE_OFFSET,
-      g_param_spec_double("nozzle-offset", "Nozzle offset",
-                          "How far the nozzles sit behind the camera along the travel (m)", 0.0,
-                          100.0, DEFAULT_NOZZLE_OFFSET, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_VALVE_LATENCY,
-      g_param_spec_uint("valve-latency", "Valve latency",
-                        "The valves' response time (ms): each command is due this much before "
-                        "the nozzles reach its canopy slice",
-                        0, 10000, DEFAULT_VALVE_LATENCY, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_MIN_GAP,
-      g_param_spec_double("min-gap", "Minimum gap",
-                          "Gaps in the canopy shorter than this (m) stay sprayed", 0.0, 100.0,
-                          DEFAULT_MIN_GAP, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_MIN_CANOPY,
-      g_param_spec_double("min-canopy", "Minimum canopy",
-                          "Canopy shorter than this along the row (m) is not sprayed", 0.0, 100.0,
-                          DEFAULT_MIN_CANOPY, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_RATE_MODEL,
-      g_param_spec_enum("rate-model", "Rate model", "How a section's rate follows the canopy",
-                        GST_TYPE_SPRAY_CONTROL_RATE_MODEL, DEFAULT_RATE_MODEL, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_HOLD_TIME,
-      g_param_spec_uint("hold-time", "Hold time",
-                        "Without a frame for this long (ms) the sections go to the fallback "
-                        "state; until then they keep the last one",
-                        1, 600000, DEFAULT_HOLD_TIME, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_FALLBACK,
-      g_param_spec_enum("fallback", "Fallback", "The sections' state after hold-time without data",
-                        GST_TYPE_SPRAY_CONTROL_FALLBACK, DEFAULT_FALLBACK, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_POST_MESSAGES,
-      g_param_spec_boolean("post-messages", "Post messages",
-                           "Post a 'treestereo-section' element message per valve command",
-                           DEFAULT_POST_MESSAGES, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_TIMELINE_LOCATION,
-      g_param_spec_string("timeline-location", "Timeline location",
-                          "PNG written at the end of the stream: the row map with each "
-                          "section's valve timeline under it (NULL: none)",
-                          nullptr, RW_READY));
+  auto props = PropertyTable<Settings>::in_object<GstSprayControl>(gobject_class);
+  props.uinteger("sections", "Sections",
+                 "Nozzle sections; 0 = one per height band of the row map (or one per "
+                 "section-heights range); another count must match those",
+                 0, 256, DEFAULT_SECTIONS, TS_FIELD(sections), kRwReady);
+  props.string("section-heights", "Section heights",
+               "Each section's height range above the ground (m), lowest first: "
+               "\"0.4:0.7,0.7:1.0,...\"; NULL = one section per band of the row map",
+               TS_FIELD(section_heights), kRwReady);
+  props.real("nozzle-offset", "Nozzle offset",
+             "How far the nozzles sit behind the camera along the travel (m)", 0.0, 100.0,
+             DEFAULT_NOZZLE_OFFSET, TS_FIELD(nozzle_offset), kRwReady);
+  props.uinteger("valve-latency", "Valve latency",
+                 "The valves' response time (ms): each command is due this much before "
+                 "the nozzles reach its canopy slice",
+                 0, 10000, DEFAULT_VALVE_LATENCY, TS_FIELD(valve_latency), kRwReady);
+  props.real("min-gap", "Minimum gap", "Gaps in the canopy shorter than this (m) stay sprayed", 0.0,
+             100.0, DEFAULT_MIN_GAP, TS_FIELD(min_gap), kRwReady);
+  props.real("min-canopy", "Minimum canopy",
+             "Canopy shorter than this along the row (m) is not sprayed", 0.0, 100.0,
+             DEFAULT_MIN_CANOPY, TS_FIELD(min_canopy), kRwReady);
+  props.enumeration("rate-model", "Rate model", "How a section's rate follows the canopy",
+                    GST_TYPE_SPRAY_CONTROL_RATE_MODEL, DEFAULT_RATE_MODEL, TS_FIELD(rate_model),
+                    kRwReady);
+  props.uinteger("hold-time", "Hold time",
+                 "Without a frame for this long (ms) the sections go to the fallback "
+                 "state; until then they keep the last one",
+                 1, 600000, DEFAULT_HOLD_TIME, TS_FIELD(hold_time), kRwReady);
+  props.enumeration("fallback", "Fallback", "The sections' state after hold-time without data",
+                    GST_TYPE_SPRAY_CONTROL_FALLBACK, DEFAULT_FALLBACK, TS_FIELD(fallback),
+                    kRwReady);
+  props.boolean("post-messages", "Post messages",
+                "Post a 'treestereo-section' element message per valve command",
+                DEFAULT_POST_MESSAGES, TS_FIELD(post_messages));
+  props.string("timeline-location", "Timeline location",
+               "PNG written at the end of the stream: the row map with each "
+               "section's valve timeline under it (NULL: none)",
+               TS_FIELD(timeline_location), kRwReady);
 
   gst_element_class_add_static_pad_template(element_class, &sink_template);
   gst_element_class_add_static_pad_template(element_class, &src_template);

@@ -90,6 +90,7 @@
 
 #include "common.hpp"
 #include "elements.hpp"
+#include "properties.hpp"
 
 #include "treestereo/canopy.hpp"
 #include "treestereo/densify.hpp"
@@ -106,6 +107,7 @@ GST_DEBUG_CATEGORY_STATIC(stereodepth_debug);
 #define GST_CAT_DEFAULT stereodepth_debug
 
 using namespace treestereo;
+using namespace treestereo::gst;
 
 typedef enum {
   GST_STEREO_DEPTH_MODE_SPARSE = 0,
@@ -174,36 +176,6 @@ static GType gst_stereo_depth_ground_get_type(void)
 #define DEFAULT_CANOPY GST_STEREO_DEPTH_CANOPY_TREE
 #define DEFAULT_DENSIFY TRUE
 #define DEFAULT_POST_MESSAGES TRUE
-
-enum {
-  PROP_0,
-  PROP_MODE,
-  PROP_MIN_DEPTH,
-  PROP_MAX_DEPTH,
-  PROP_OUTLIER_K,
-  PROP_MIN_DISPARITY,
-  PROP_NUM_DISPARITIES,
-  PROP_BLOCK_SIZE,
-  PROP_P1,
-  PROP_P2,
-  PROP_UNIQUENESS_RATIO,
-  PROP_SPECKLE_WINDOW_SIZE,
-  PROP_SPECKLE_RANGE,
-  PROP_SAMPLE_STEP,
-  PROP_POST_MESSAGES,
-  PROP_DENSIFY,
-  PROP_DENSIFY_STEP,
-  PROP_EDGE_BAND,
-  PROP_EDGE_STEP,
-  PROP_CANOPY,
-  PROP_ZONE_NEAR,
-  PROP_ZONE_FAR,
-  PROP_MIN_HEIGHT,
-  PROP_MAX_HEIGHT,
-  PROP_GROUND,
-  PROP_CAMERA_HEIGHT,
-  PROP_CAMERA_PITCH,
-};
 
 namespace {
 
@@ -488,8 +460,10 @@ static gboolean gst_stereo_depth_set_caps(GstBaseTransform *trans, GstCaps *inca
 {
   GstStereoDepth *self = GST_STEREO_DEPTH(trans);
   if (!gst_video_info_from_caps(&self->state->info, incaps)) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr),
-                      ("invalid caps %" GST_PTR_FORMAT, incaps));
+    post_caps_error(GST_ELEMENT(self),
+                    "stereodepth cannot read its caps as raw video: check the caps of the "
+                    "elements before it.",
+                    incaps, "invalid caps");
     return FALSE;
   }
   self->state->info_set = true;
@@ -573,98 +547,6 @@ static GstFlowReturn gst_stereo_depth_transform_ip(GstBaseTransform *trans, GstB
   return GST_FLOW_OK;
 }
 
-static void gst_stereo_depth_set_property(GObject *object, guint prop_id, const GValue *value,
-                                          GParamSpec *pspec)
-{
-  GstStereoDepth *self = GST_STEREO_DEPTH(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_MODE: s.mode = GstStereoDepthMode(g_value_get_enum(value)); break;
-  case PROP_MIN_DEPTH: s.dense.filter.min_depth_mm = g_value_get_double(value); break;
-  case PROP_MAX_DEPTH: s.dense.filter.max_depth_mm = g_value_get_double(value); break;
-  case PROP_OUTLIER_K: s.dense.filter.outlier_k = g_value_get_double(value); break;
-  case PROP_MIN_DISPARITY: s.dense.min_disparity = g_value_get_int(value); break;
-  case PROP_NUM_DISPARITIES: s.dense.num_disparities = g_value_get_int(value); break;
-  case PROP_BLOCK_SIZE: s.dense.block_size = g_value_get_int(value); break;
-  case PROP_P1: s.dense.p1 = g_value_get_int(value); break;
-  case PROP_P2: s.dense.p2 = g_value_get_int(value); break;
-  case PROP_UNIQUENESS_RATIO: s.dense.uniqueness_ratio = g_value_get_int(value); break;
-  case PROP_SPECKLE_WINDOW_SIZE: s.dense.speckle_window = g_value_get_int(value); break;
-  case PROP_SPECKLE_RANGE: s.dense.speckle_range = g_value_get_int(value); break;
-  case PROP_SAMPLE_STEP: s.dense.sample_step = g_value_get_int(value); break;
-  case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
-  case PROP_DENSIFY: s.densify = g_value_get_boolean(value); break;
-  case PROP_DENSIFY_STEP: s.grid.step = g_value_get_int(value); break;
-  case PROP_EDGE_BAND: s.grid.edge_band = g_value_get_double(value); break;
-  case PROP_EDGE_STEP: s.grid.edge_step = g_value_get_int(value); break;
-  case PROP_CANOPY: s.canopy = GstStereoDepthCanopy(g_value_get_enum(value)); break;
-  case PROP_ZONE_NEAR: s.zone.near_mm = g_value_get_double(value); break;
-  case PROP_ZONE_FAR: s.zone.far_mm = g_value_get_double(value); break;
-  case PROP_MIN_HEIGHT: s.zone.min_height_mm = g_value_get_double(value); break;
-  case PROP_MAX_HEIGHT: s.zone.max_height_mm = g_value_get_double(value); break;
-  case PROP_GROUND: s.zone.ground = GroundModel(g_value_get_enum(value)); break;
-  case PROP_CAMERA_HEIGHT: s.zone.camera_height_mm = g_value_get_double(value); break;
-  case PROP_CAMERA_PITCH: s.zone.camera_pitch_deg = g_value_get_double(value); break;
-  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
-  }
-}
-
-static void gst_stereo_depth_get_property(GObject *object, guint prop_id, GValue *value,
-                                          GParamSpec *pspec)
-{
-  GstStereoDepth *self = GST_STEREO_DEPTH(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  const Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_MODE: g_value_set_enum(value, s.mode); break;
-  case PROP_MIN_DEPTH: g_value_set_double(value, s.dense.filter.min_depth_mm); break;
-  case PROP_MAX_DEPTH: g_value_set_double(value, s.dense.filter.max_depth_mm); break;
-  case PROP_OUTLIER_K: g_value_set_double(value, s.dense.filter.outlier_k); break;
-  case PROP_MIN_DISPARITY: g_value_set_int(value, s.dense.min_disparity); break;
-  case PROP_NUM_DISPARITIES: g_value_set_int(value, s.dense.num_disparities); break;
-  case PROP_BLOCK_SIZE: g_value_set_int(value, s.dense.block_size); break;
-  case PROP_P1: g_value_set_int(value, s.dense.p1); break;
-  case PROP_P2: g_value_set_int(value, s.dense.p2); break;
-  case PROP_UNIQUENESS_RATIO: g_value_set_int(value, s.dense.uniqueness_ratio); break;
-  case PROP_SPECKLE_WINDOW_SIZE: g_value_set_int(value, s.dense.speckle_window); break;
-  case PROP_SPECKLE_RANGE: g_value_set_int(value, s.dense.speckle_range); break;
-  case PROP_SAMPLE_STEP: g_value_set_int(value, s.dense.sample_step); break;
-  case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
-  case PROP_DENSIFY: g_value_set_boolean(value, s.densify); break;
-  case PROP_DENSIFY_STEP: g_value_set_int(value, s.grid.step); break;
-  case PROP_EDGE_BAND: g_value_set_double(value, s.grid.edge_band); break;
-  case PROP_EDGE_STEP: g_value_set_int(value, s.grid.edge_step); break;
-  case PROP_CANOPY: g_value_set_enum(value, s.canopy); break;
-  case PROP_ZONE_NEAR: g_value_set_double(value, s.zone.near_mm); break;
-  case PROP_ZONE_FAR: g_value_set_double(value, s.zone.far_mm); break;
-  case PROP_MIN_HEIGHT: g_value_set_double(value, s.zone.min_height_mm); break;
-  case PROP_MAX_HEIGHT: g_value_set_double(value, s.zone.max_height_mm); break;
-  case PROP_GROUND: g_value_set_enum(value, int(s.zone.ground)); break;
-  case PROP_CAMERA_HEIGHT: g_value_set_double(value, s.zone.camera_height_mm); break;
-  case PROP_CAMERA_PITCH: g_value_set_double(value, s.zone.camera_pitch_deg); break;
-  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
-  }
-}
-
-static void gst_stereo_depth_finalize(GObject *object)
-{
-  GstStereoDepth *self = GST_STEREO_DEPTH(object);
-  delete self->state;
-  self->state = nullptr;
-  G_OBJECT_CLASS(gst_stereo_depth_parent_class)->finalize(object);
-}
-
-#define RW_PLAYING \
-  GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)
-
-static void install_int(GObjectClass *klass, guint id, const char *name, const char *nick,
-                        const char *blurb, int min, int max, int def)
-{
-  g_object_class_install_property(klass, id,
-                                  g_param_spec_int(name, nick, blurb, min, max, def, RW_PLAYING));
-}
-
 static void gst_stereo_depth_class_init(GstStereoDepthClass *klass)
 {
   GObjectClass *gobject_class = G_OBJECT_CLASS(klass);
@@ -674,135 +556,103 @@ static void gst_stereo_depth_class_init(GstStereoDepthClass *klass)
 
   GST_DEBUG_CATEGORY_INIT(stereodepth_debug, "stereodepth", 0, "treestereo stereodepth");
 
-  gobject_class->set_property = gst_stereo_depth_set_property;
-  gobject_class->get_property = gst_stereo_depth_get_property;
-  gobject_class->finalize = gst_stereo_depth_finalize;
+  gobject_class->finalize = finalize_state<GstStereoDepth, &gst_stereo_depth_parent_class>;
 
-  g_object_class_install_property(
-      gobject_class, PROP_MODE,
-      g_param_spec_enum("mode", "Mode",
-                        "sparse: triangulate siftmatch's matches; dense: StereoSGBM on the "
-                        "canopy's box with a GRAY16_LE depth map",
-                        GST_TYPE_STEREO_DEPTH_MODE, DEFAULT_MODE, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_MIN_DEPTH,
-      g_param_spec_double("min-depth", "Minimum depth",
-                          "Points nearer than this (mm) are dropped; dense: also bounds the "
-                          "disparity search",
-                          1.0, 1e6, d.filter.min_depth_mm, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_MAX_DEPTH,
-      g_param_spec_double("max-depth", "Maximum depth",
-                          "Points farther than this (mm) are dropped; must exceed min-depth",
-                          1.0, 1e6, d.filter.max_depth_mm, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_OUTLIER_K,
-      g_param_spec_double("outlier-k", "Outlier cut",
-                          "Drop points with |Z - median| > k * 1.4826 * MAD of the canopy's "
-                          "depths; 0 = off (3.5: Iglewicz and Hoaglin's cut)",
-                          0.0, 100.0, d.filter.outlier_k, RW_PLAYING));
-  install_int(gobject_class, PROP_MIN_DISPARITY, "min-disparity", "Minimum disparity",
-              "dense: smallest disparity searched (px) when num-disparities is set", -4096, 4096,
-              d.min_disparity);
-  install_int(gobject_class, PROP_NUM_DISPARITIES, "num-disparities", "Number of disparities",
-              "dense: disparities searched, a multiple of 16; 0 = the smallest window that "
-              "covers [min-depth, max-depth]",
-              0, 4096, d.num_disparities);
-  install_int(gobject_class, PROP_BLOCK_SIZE, "block-size", "Block size",
-              "dense: SGBM's matched block size (odd, px)", 1, 51, d.block_size);
-  install_int(gobject_class, PROP_P1, "p1", "P1",
-              "dense: SGBM's penalty of a disparity change by 1; 0 = 8 * block-size^2", 0,
-              G_MAXINT, d.p1);
-  install_int(gobject_class, PROP_P2, "p2", "P2",
-              "dense: SGBM's penalty of larger disparity changes (> p1); 0 = 32 * block-size^2",
-              0, G_MAXINT, d.p2);
-  install_int(gobject_class, PROP_UNIQUENESS_RATIO, "uniqueness-ratio", "Uniqueness ratio",
-              "dense: margin (%) by which the best cost must beat the second best", 0, 100,
-              d.uniqueness_ratio);
-  install_int(gobject_class, PROP_SPECKLE_WINDOW_SIZE, "speckle-window-size",
-              "Speckle window size",
-              "dense: largest disparity blob (px) removed as a speckle; 0 = no speckle filter",
-              0, 100000, d.speckle_window);
-  install_int(gobject_class, PROP_SPECKLE_RANGE, "speckle-range", "Speckle range",
-              "dense: largest disparity variation (px) within a connected component", 0, 1000,
-              d.speckle_range);
-  install_int(gobject_class, PROP_SAMPLE_STEP, "sample-step", "Sample step",
-              "dense: a 3D point from every n-th canopy pixel in x and in y", 1, 1024,
-              d.sample_step);
-  g_object_class_install_property(
-      gobject_class, PROP_DENSIFY,
-      g_param_spec_boolean("densify", "Densify",
-                           "sparse: also match a grid of the canopy's pixels by ZNCC, seeded by "
-                           "the matches (an even sample of the canopy for its distance and "
-                           "thickness); needs side-by-side frames and a vegetation meta",
-                           DEFAULT_DENSIFY, RW_PLAYING));
-  install_int(gobject_class, PROP_DENSIFY_STEP, "densify-step", "Densify step",
-              "sparse with densify: grid step in px; 0 = automatic, about 4000 grid points on "
-              "the canopy",
-              0, 1024, DensifyParams{}.step);
-  g_object_class_install_property(
-      gobject_class, PROP_EDGE_BAND,
-      g_param_spec_double("edge-band", "Edge band",
-                          "sparse with densify: also sample the mask every edge-step px within "
-                          "this fraction of the canopy box's height (width) of its top and "
-                          "bottom rows (left and right columns), where the canopy's 3D extremes "
-                          "are (treemetrics:extreme-points); 0 = off",
-                          0.0, 0.5, DensifyParams{}.edge_band, RW_PLAYING));
-  install_int(gobject_class, PROP_EDGE_STEP, "edge-step", "Edge step",
-              "sparse with densify: the edge bands' grid step in px; 0 = automatic, the view's "
-              "width / 648 and at least 2 (2 px at 1296 wide, 4 at 2592)",
-              0, 1024, DensifyParams{}.edge_step);
+  auto props = PropertyTable<Settings>::in_state<GstStereoDepth>(gobject_class);
+  props.enumeration("mode", "Mode",
+                    "sparse: triangulate siftmatch's matches; dense: StereoSGBM on the "
+                    "canopy's box with a GRAY16_LE depth map",
+                    GST_TYPE_STEREO_DEPTH_MODE, DEFAULT_MODE, TS_FIELD(mode));
+  props.real("min-depth", "Minimum depth",
+             "Points nearer than this (mm) are dropped; dense: also bounds the "
+             "disparity search",
+             1.0, 1e6, d.filter.min_depth_mm, TS_FIELD(dense.filter.min_depth_mm));
+  props.real("max-depth", "Maximum depth",
+             "Points farther than this (mm) are dropped; must exceed min-depth", 1.0, 1e6,
+             d.filter.max_depth_mm, TS_FIELD(dense.filter.max_depth_mm));
+  props.real("outlier-k", "Outlier cut",
+             "Drop points with |Z - median| > k * 1.4826 * MAD of the canopy's "
+             "depths; 0 = off (3.5: Iglewicz and Hoaglin's cut)",
+             0.0, 100.0, d.filter.outlier_k, TS_FIELD(dense.filter.outlier_k));
+  props.integer("min-disparity", "Minimum disparity",
+                "dense: smallest disparity searched (px) when num-disparities is set", -4096, 4096,
+                d.min_disparity, TS_FIELD(dense.min_disparity));
+  props.integer("num-disparities", "Number of disparities",
+                "dense: disparities searched, a multiple of 16; 0 = the smallest window that "
+                "covers [min-depth, max-depth]",
+                0, 4096, d.num_disparities, TS_FIELD(dense.num_disparities));
+  props.integer("block-size", "Block size", "dense: SGBM's matched block size (odd, px)", 1, 51,
+                d.block_size, TS_FIELD(dense.block_size));
+  props.integer("p1", "P1",
+                "dense: SGBM's penalty of a disparity change by 1; 0 = 8 * block-size^2", 0,
+                G_MAXINT, d.p1, TS_FIELD(dense.p1));
+  props.integer("p2", "P2",
+                "dense: SGBM's penalty of larger disparity changes (> p1); 0 = 32 * block-size^2",
+                0, G_MAXINT, d.p2, TS_FIELD(dense.p2));
+  props.integer("uniqueness-ratio", "Uniqueness ratio",
+                "dense: margin (%) by which the best cost must beat the second best", 0, 100,
+                d.uniqueness_ratio, TS_FIELD(dense.uniqueness_ratio));
+  props.integer("speckle-window-size", "Speckle window size",
+                "dense: largest disparity blob (px) removed as a speckle; 0 = no speckle filter", 0,
+                100000, d.speckle_window, TS_FIELD(dense.speckle_window));
+  props.integer("speckle-range", "Speckle range",
+                "dense: largest disparity variation (px) within a connected component", 0, 1000,
+                d.speckle_range, TS_FIELD(dense.speckle_range));
+  props.integer("sample-step", "Sample step",
+                "dense: a 3D point from every n-th canopy pixel in x and in y", 1, 1024,
+                d.sample_step, TS_FIELD(dense.sample_step));
+  props.boolean("post-messages", "Post messages", "Post a 'stereodepth' element message per buffer",
+                DEFAULT_POST_MESSAGES, TS_FIELD(post_messages));
+  props.boolean("densify", "Densify",
+                "sparse: also match a grid of the canopy's pixels by ZNCC, seeded by "
+                "the matches (an even sample of the canopy for its distance and "
+                "thickness); needs side-by-side frames and a vegetation meta",
+                DEFAULT_DENSIFY, TS_FIELD(densify));
+  const DensifyParams dg;
+  props.integer("densify-step", "Densify step",
+                "sparse with densify: grid step in px; 0 = automatic, about 4000 grid points on "
+                "the canopy",
+                0, 1024, dg.step, TS_FIELD(grid.step));
+  props.real("edge-band", "Edge band",
+             "sparse with densify: also sample the mask every edge-step px within "
+             "this fraction of the canopy box's height (width) of its top and "
+             "bottom rows (left and right columns), where the canopy's 3D extremes "
+             "are (treemetrics:extreme-points); 0 = off",
+             0.0, 0.5, dg.edge_band, TS_FIELD(grid.edge_band));
+  props.integer("edge-step", "Edge step",
+                "sparse with densify: the edge bands' grid step in px; 0 = automatic, the view's "
+                "width / 648 and at least 2 (2 px at 1296 wide, 4 at 2592)",
+                0, 1024, dg.edge_step, TS_FIELD(grid.edge_step));
   const CanopyParams cz;
-  g_object_class_install_property(
-      gobject_class, PROP_CANOPY,
-      g_param_spec_enum("canopy", "Canopy",
-                        "sparse with densify: which vegetation is the canopy, decided in 3D: "
-                        "tree (the tree in front), row (the near row in view), off (all the "
-                        "colour mask)",
-                        GST_TYPE_STEREO_DEPTH_CANOPY, DEFAULT_CANOPY, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_ZONE_NEAR,
-      g_param_spec_double("zone-near", "Spray zone near",
-                          "The spray zone's near depth (mm); zone-near and zone-far both 0: the "
-                          "near row is found from the data (the nearest dominant depth layer)",
-                          0.0, 1e6, cz.near_mm, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_ZONE_FAR,
-      g_param_spec_double("zone-far", "Spray zone far",
-                          "The spray zone's far depth (mm); 0 with zone-near set: no far limit",
-                          0.0, 1e6, cz.far_mm, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_MIN_HEIGHT,
-      g_param_spec_double("min-height", "Minimum height",
-                          "Canopy starts this high above the ground (mm): lower vegetation is "
-                          "grass (needs a ground plane)",
-                          -1e5, 1e5, cz.min_height_mm, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_MAX_HEIGHT,
-      g_param_spec_double("max-height", "Maximum height",
-                          "Canopy ends this high above the ground (mm); 0 = no limit", 0.0, 1e5,
-                          cz.max_height_mm, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_GROUND,
-      g_param_spec_enum("ground", "Ground",
-                        "The ground plane: fit (to the vegetation's points), rig (camera-height "
-                        "and camera-pitch), off",
-                        GST_TYPE_STEREO_DEPTH_GROUND, int(cz.ground), RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_CAMERA_HEIGHT,
-      g_param_spec_double("camera-height", "Camera height",
-                          "ground=rig: the left camera's optical centre above the ground (mm)",
-                          0.0, 1e5, cz.camera_height_mm, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_CAMERA_PITCH,
-      g_param_spec_double("camera-pitch", "Camera pitch",
-                          "ground=rig: the camera's pitch (degrees, positive = looking down)",
-                          -80.0, 80.0, cz.camera_pitch_deg, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_POST_MESSAGES,
-      g_param_spec_boolean("post-messages", "Post messages",
-                           "Post a 'stereodepth' element message per buffer",
-                           DEFAULT_POST_MESSAGES, RW_PLAYING));
+  props.enumeration("canopy", "Canopy",
+                    "sparse with densify: which vegetation is the canopy, decided in 3D: "
+                    "tree (the tree in front), row (the near row in view), off (all the "
+                    "colour mask)",
+                    GST_TYPE_STEREO_DEPTH_CANOPY, DEFAULT_CANOPY, TS_FIELD(canopy));
+  props.real("zone-near", "Spray zone near",
+             "The spray zone's near depth (mm); zone-near and zone-far both 0: the "
+             "near row is found from the data (the nearest dominant depth layer)",
+             0.0, 1e6, cz.near_mm, TS_FIELD(zone.near_mm));
+  props.real("zone-far", "Spray zone far",
+             "The spray zone's far depth (mm); 0 with zone-near set: no far limit", 0.0, 1e6,
+             cz.far_mm, TS_FIELD(zone.far_mm));
+  props.real("min-height", "Minimum height",
+             "Canopy starts this high above the ground (mm): lower vegetation is "
+             "grass (needs a ground plane)",
+             -1e5, 1e5, cz.min_height_mm, TS_FIELD(zone.min_height_mm));
+  props.real("max-height", "Maximum height",
+             "Canopy ends this high above the ground (mm); 0 = no limit", 0.0, 1e5,
+             cz.max_height_mm, TS_FIELD(zone.max_height_mm));
+  props.enumeration("ground", "Ground",
+                    "The ground plane: fit (to the vegetation's points), rig (camera-height "
+                    "and camera-pitch), off",
+                    GST_TYPE_STEREO_DEPTH_GROUND, int(cz.ground), TS_FIELD(zone.ground));
+  props.real("camera-height", "Camera height",
+             "ground=rig: the left camera's optical centre above the ground (mm)", 0.0, 1e5,
+             cz.camera_height_mm, TS_FIELD(zone.camera_height_mm));
+  props.real("camera-pitch", "Camera pitch",
+             "ground=rig: the camera's pitch (degrees, positive = looking down)", -80.0, 80.0,
+             cz.camera_pitch_deg, TS_FIELD(zone.camera_pitch_deg));
 
   gst_element_class_add_static_pad_template(element_class, &sink_template);
   gst_element_class_add_static_pad_template(element_class, &src_template);

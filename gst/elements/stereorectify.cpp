@@ -38,6 +38,7 @@
 
 #include "common.hpp"
 #include "elements.hpp"
+#include "properties.hpp"
 
 #include "treestereo/calibration.hpp"
 #include "treestereo/rectify.hpp"
@@ -53,6 +54,7 @@ GST_DEBUG_CATEGORY_STATIC(stereorectify_debug);
 #define GST_CAT_DEFAULT stereorectify_debug
 
 using namespace treestereo;
+using namespace treestereo::gst;
 
 #define DEFAULT_MAX_SKEW (20 * GST_MSECOND)
 #define DEFAULT_ALPHA (-1.0)
@@ -60,16 +62,6 @@ using namespace treestereo;
 /* A renegotiation on one camera may leave the two sizes apart for a few frames; longer than this
  * is a configuration error. */
 #define MAX_MISMATCHED_FRAMES 30
-
-enum {
-  PROP_0,
-  PROP_CALIBRATION,
-  PROP_ALPHA,
-  PROP_MAX_SKEW,
-  PROP_RECTIFY,
-  PROP_DROPPED,
-  PROP_PAIRED,
-};
 
 namespace {
 
@@ -223,9 +215,11 @@ static gboolean gst_stereo_rectify_sink_event(GstAggregator *agg, GstAggregatorP
     const int i = pad_index(self, pad);
     GstVideoInfo info;
     if (!gst_video_info_from_caps(&info, caps)) {
-      GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr),
-                        ("invalid caps on the %s pad: %" GST_PTR_FORMAT,
-                         i == LEFT ? "left" : "right", caps));
+      const std::string side = i == LEFT ? "left" : "right";
+      post_caps_error(GST_ELEMENT(self),
+                      "stereorectify cannot read the caps of its " + side +
+                          " pad as raw video: check the " + side + " camera's chain.",
+                      caps, "invalid caps on the " + side + " pad");
       gst_event_unref(event);
       return FALSE;
     }
@@ -292,12 +286,12 @@ static gboolean gst_stereo_rectify_negotiated_src_caps(GstAggregator *agg, GstCa
     configure_rectification(self, s);
   } catch (const std::exception &e) {
     /* the frames' size does not fit the calibration: the caps are what cannot be used */
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("stereorectify cannot rectify %s frames with the calibration \"%s\": "
-                       "give it frames of the calibration's size (or a pure scale of it), or a "
-                       "calibration made at this size.",
-                       caps_summary(&st->pad_info[LEFT]).c_str(), s.calibration.c_str()),
-                      ("%s", e.what()));
+    post_caps_error(GST_ELEMENT(self),
+                    "stereorectify cannot rectify " + caps_summary(&st->pad_info[LEFT]) +
+                        " frames with the calibration \"" + s.calibration +
+                        "\": give it frames of the calibration's size (or a pure scale of it), "
+                        "or a calibration made at this size.",
+                    nullptr, e.what());
     st->out_configured = false;
     return FALSE;
   }
@@ -480,11 +474,11 @@ static GstFlowReturn gst_stereo_rectify_aggregate(GstAggregator *agg, gboolean t
     const std::string l = caps_summary(&st->pad_info[LEFT]),
                       r = caps_summary(&st->pad_info[RIGHT]);
     if (!st->ever_paired || ++st->mismatched > MAX_MISMATCHED_FRAMES) {
-      GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                        ("The left and right cameras deliver different formats or sizes: left "
-                         "%s, right %s. Both must be the same; set caps filters so they agree.",
-                         l.c_str(), r.c_str()),
-                        (nullptr));
+      post_caps_error(GST_ELEMENT(self),
+                      "The left and right cameras deliver different formats or sizes: left " + l +
+                          ", right " + r +
+                          ". Both must be the same; set caps filters so they agree.",
+                      nullptr);
       ret = GST_FLOW_NOT_NEGOTIATED;
       goto done;
     }
@@ -548,75 +542,6 @@ done:
   return ret;
 }
 
-static void gst_stereo_rectify_set_property(GObject *object, guint prop_id, const GValue *value,
-                                            GParamSpec *pspec)
-{
-  GstStereoRectify *self = GST_STEREO_RECTIFY(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_CALIBRATION: {
-    const gchar *v = g_value_get_string(value);
-    s.calibration = v ? v : "";
-    s.generation++;
-    break;
-  }
-  case PROP_ALPHA:
-    s.alpha = g_value_get_double(value);
-    s.generation++;
-    break;
-  case PROP_MAX_SKEW:
-    s.max_skew = g_value_get_uint64(value);
-    break;
-  case PROP_RECTIFY:
-    s.rectify = g_value_get_boolean(value);
-    s.generation++;
-    break;
-  default:
-    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-    break;
-  }
-}
-
-static void gst_stereo_rectify_get_property(GObject *object, guint prop_id, GValue *value,
-                                            GParamSpec *pspec)
-{
-  GstStereoRectify *self = GST_STEREO_RECTIFY(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  const Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_CALIBRATION:
-    g_value_set_string(value, s.calibration.empty() ? nullptr : s.calibration.c_str());
-    break;
-  case PROP_ALPHA:
-    g_value_set_double(value, s.alpha);
-    break;
-  case PROP_MAX_SKEW:
-    g_value_set_uint64(value, s.max_skew);
-    break;
-  case PROP_RECTIFY:
-    g_value_set_boolean(value, s.rectify);
-    break;
-  case PROP_DROPPED:
-    g_value_set_uint64(value, self->state->dropped);
-    break;
-  case PROP_PAIRED:
-    g_value_set_uint64(value, self->state->paired);
-    break;
-  default:
-    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-    break;
-  }
-}
-
-static void gst_stereo_rectify_finalize(GObject *object)
-{
-  GstStereoRectify *self = GST_STEREO_RECTIFY(object);
-  delete self->state;
-  self->state = nullptr;
-  G_OBJECT_CLASS(gst_stereo_rectify_parent_class)->finalize(object);
-}
-
 static void gst_stereo_rectify_class_init(GstStereoRectifyClass *klass)
 {
   GObjectClass *gobject_class = G_OBJECT_CLASS(klass);
@@ -625,52 +550,37 @@ static void gst_stereo_rectify_class_init(GstStereoRectifyClass *klass)
 
   GST_DEBUG_CATEGORY_INIT(stereorectify_debug, "stereorectify", 0, "treestereo stereorectify");
 
-  gobject_class->set_property = gst_stereo_rectify_set_property;
-  gobject_class->get_property = gst_stereo_rectify_get_property;
-  gobject_class->finalize = gst_stereo_rectify_finalize;
+  gobject_class->finalize = finalize_state<GstStereoRectify, &gst_stereo_rectify_parent_class>;
 
-  g_object_class_install_property(
-      gobject_class, PROP_CALIBRATION,
-      g_param_spec_string("calibration", "Calibration",
-                          "Stereo calibration: an OpenCV YAML/XML file (M1 D1 M2 D2 R T) or two "
-                          "ROS camera_info files 'left.yaml;right.yaml'. May change while "
-                          "playing.",
-                          nullptr,
-                          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                      GST_PARAM_MUTABLE_PLAYING)));
-  g_object_class_install_property(
-      gobject_class, PROP_ALPHA,
-      g_param_spec_double("alpha", "Alpha",
-                          "Free scaling of cv::stereoRectify: -1 = OpenCV's default, 0 = only "
-                          "valid pixels, 1 = every source pixel kept",
-                          -1.0, 1.0, DEFAULT_ALPHA,
-                          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                      GST_PARAM_MUTABLE_PLAYING)));
-  g_object_class_install_property(
-      gobject_class, PROP_MAX_SKEW,
-      g_param_spec_uint64("max-skew", "Maximum skew",
-                          "How far apart (ns of running time) a left and a right frame may be "
-                          "and still pair",
-                          0, G_MAXUINT64, DEFAULT_MAX_SKEW,
-                          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                      GST_PARAM_MUTABLE_PLAYING)));
-  g_object_class_install_property(
-      gobject_class, PROP_RECTIFY,
-      g_param_spec_boolean("rectify", "Rectify",
-                           "Rectify the views; false for already-rectified input (the geometry "
-                           "still comes from the calibration)",
-                           DEFAULT_RECTIFY,
-                           GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                       GST_PARAM_MUTABLE_PLAYING)));
-  g_object_class_install_property(
-      gobject_class, PROP_DROPPED,
-      g_param_spec_uint64("dropped", "Dropped", "Frames dropped for want of a partner", 0,
-                          G_MAXUINT64, 0,
-                          GParamFlags(G_PARAM_READABLE | G_PARAM_STATIC_STRINGS)));
-  g_object_class_install_property(
-      gobject_class, PROP_PAIRED,
-      g_param_spec_uint64("paired", "Paired", "Stereo pairs pushed", 0, G_MAXUINT64, 0,
-                          GParamFlags(G_PARAM_READABLE | G_PARAM_STATIC_STRINGS)));
+  /* The pair counters sit beside the settings, under the same lock. */
+  PropertyTable<State> props(
+      gobject_class, [](GObject *o) -> State & { return *GST_STEREO_RECTIFY(o)->state; },
+      [](GObject *o) -> std::mutex & { return GST_STEREO_RECTIFY(o)->state->lock; });
+  const auto remap = [](State &s) { s.settings.generation++; }; // the maps are made again
+  props.after_set(remap);
+  props.string("calibration", "Calibration",
+               "Stereo calibration: an OpenCV YAML/XML file (M1 D1 M2 D2 R T) or two "
+               "ROS camera_info files 'left.yaml;right.yaml'. May change while "
+               "playing.",
+               TS_FIELD(settings.calibration));
+  props.real("alpha", "Alpha",
+             "Free scaling of cv::stereoRectify: -1 = OpenCV's default, 0 = only "
+             "valid pixels, 1 = every source pixel kept",
+             -1.0, 1.0, DEFAULT_ALPHA, TS_FIELD(settings.alpha));
+  props.after_set(nullptr);
+  props.uint64("max-skew", "Maximum skew",
+               "How far apart (ns of running time) a left and a right frame may be "
+               "and still pair",
+               0, G_MAXUINT64, DEFAULT_MAX_SKEW, TS_FIELD(settings.max_skew));
+  props.after_set(remap);
+  props.boolean("rectify", "Rectify",
+                "Rectify the views; false for already-rectified input (the geometry "
+                "still comes from the calibration)",
+                DEFAULT_RECTIFY, TS_FIELD(settings.rectify));
+  props.uint64("dropped", "Dropped", "Frames dropped for want of a partner", 0, G_MAXUINT64, 0,
+               TS_FIELD(dropped), kReadOnly);
+  props.uint64("paired", "Paired", "Stereo pairs pushed", 0, G_MAXUINT64, 0, TS_FIELD(paired),
+               kReadOnly);
 
   gst_element_class_add_static_pad_template_with_gtype(element_class, &left_template,
                                                        GST_TYPE_AGGREGATOR_PAD);

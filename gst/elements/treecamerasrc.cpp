@@ -48,6 +48,7 @@
 
 #include "common.hpp"
 #include "elements.hpp"
+#include "properties.hpp"
 
 #include <algorithm>
 #include <string>
@@ -55,22 +56,12 @@
 GST_DEBUG_CATEGORY_STATIC(treecamerasrc_debug);
 #define GST_CAT_DEFAULT treecamerasrc_debug
 
+using namespace treestereo::gst;
+
 #define DEFAULT_TIMEOUT 2000
 #define DEFAULT_RECONNECT_INTERVAL 500
 #define DEFAULT_RECONNECT_MAX 8000
 #define QUEUE_FRAMES 8
-
-enum {
-  PROP_0,
-  PROP_CAMERA,
-  PROP_CAPS,
-  PROP_FEATURES,
-  PROP_TIMEOUT,
-  PROP_RECONNECT_INTERVAL,
-  PROP_RECONNECT_MAX,
-  PROP_CONNECTED,
-  PROP_RECONNECTS,
-};
 
 namespace {
 
@@ -865,68 +856,6 @@ static GstStateChangeReturn gst_tree_camera_src_change_state(GstElement *element
   return ret;
 }
 
-static void gst_tree_camera_src_set_property(GObject *object, guint prop_id, const GValue *value,
-                                             GParamSpec *pspec)
-{
-  GstTreeCameraSrc *self = GST_TREE_CAMERA_SRC(object);
-  GST_OBJECT_LOCK(self);
-  Settings &s = self->settings;
-  switch (prop_id) {
-  case PROP_CAMERA: {
-    const gchar *v = g_value_get_string(value);
-    s.camera = v ? v : "";
-    break;
-  }
-  case PROP_CAPS: {
-    GstCaps *caps = static_cast<GstCaps *>(g_value_dup_boxed(value));
-    if (s.caps)
-      gst_caps_unref(s.caps);
-    s.caps = caps;
-    break;
-  }
-  case PROP_FEATURES: {
-    const gchar *v = g_value_get_string(value);
-    s.features = v ? v : "";
-    break;
-  }
-  case PROP_TIMEOUT: s.timeout = g_value_get_uint(value); break;
-  case PROP_RECONNECT_INTERVAL: s.reconnect_interval = g_value_get_uint(value); break;
-  case PROP_RECONNECT_MAX: s.reconnect_max = g_value_get_uint(value); break;
-  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
-  }
-  GST_OBJECT_UNLOCK(self);
-}
-
-static void gst_tree_camera_src_get_property(GObject *object, guint prop_id, GValue *value,
-                                             GParamSpec *pspec)
-{
-  GstTreeCameraSrc *self = GST_TREE_CAMERA_SRC(object);
-  if (prop_id == PROP_CONNECTED || prop_id == PROP_RECONNECTS) {
-    State &st = *self->state;
-    g_mutex_lock(&st.lock);
-    if (prop_id == PROP_CONNECTED)
-      g_value_set_boolean(value, st.phase == Phase::Streaming && st.running);
-    else
-      g_value_set_uint64(value, st.reconnects);
-    g_mutex_unlock(&st.lock);
-    return;
-  }
-  GST_OBJECT_LOCK(self);
-  const Settings &s = self->settings;
-  switch (prop_id) {
-  case PROP_CAMERA: g_value_set_string(value, s.camera.empty() ? nullptr : s.camera.c_str()); break;
-  case PROP_CAPS: g_value_set_boxed(value, s.caps); break;
-  case PROP_FEATURES:
-    g_value_set_string(value, s.features.empty() ? nullptr : s.features.c_str());
-    break;
-  case PROP_TIMEOUT: g_value_set_uint(value, s.timeout); break;
-  case PROP_RECONNECT_INTERVAL: g_value_set_uint(value, s.reconnect_interval); break;
-  case PROP_RECONNECT_MAX: g_value_set_uint(value, s.reconnect_max); break;
-  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
-  }
-  GST_OBJECT_UNLOCK(self);
-}
-
 static void gst_tree_camera_src_finalize(GObject *object)
 {
   GstTreeCameraSrc *self = GST_TREE_CAMERA_SRC(object);
@@ -938,10 +867,6 @@ static void gst_tree_camera_src_finalize(GObject *object)
 }
 
 /* Read when the camera is opened (READY->PAUSED): changes apply from the next start. */
-#define RW_READY \
-  GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_READY)
-#define RO GParamFlags(G_PARAM_READABLE | G_PARAM_STATIC_STRINGS)
-
 static void gst_tree_camera_src_class_init(GstTreeCameraSrcClass *klass)
 {
   GObjectClass *gobject_class = G_OBJECT_CLASS(klass);
@@ -950,53 +875,54 @@ static void gst_tree_camera_src_class_init(GstTreeCameraSrcClass *klass)
 
   GST_DEBUG_CATEGORY_INIT(treecamerasrc_debug, "treecamerasrc", 0, "treestereo treecamerasrc");
 
-  gobject_class->set_property = gst_tree_camera_src_set_property;
-  gobject_class->get_property = gst_tree_camera_src_get_property;
   gobject_class->finalize = gst_tree_camera_src_finalize;
 
-  g_object_class_install_property(
-      gobject_class, PROP_CAMERA,
-      g_param_spec_string("camera", "Camera",
-                          "The camera's name, serial number or IP address, as aravissrc's "
-                          "camera-name (arv-tool-0.8 lists them)",
-                          nullptr, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_CAPS,
+  auto props = PropertyTable<Settings>::in_object<GstTreeCameraSrc>(gobject_class);
+  props.string("camera", "Camera",
+               "The camera's name, serial number or IP address, as aravissrc's "
+               "camera-name (arv-tool-0.8 lists them)",
+               TS_FIELD(camera), kRwReady);
+  props.custom(
       g_param_spec_boxed("caps", "Caps",
                          "What to ask of the camera (e.g. video/x-bayer,framerate=10/1: Bayer "
                          "adds bayer2rgb); NULL = what it gives by default",
-                         GST_TYPE_CAPS, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_FEATURES,
-      g_param_spec_string("features", "Features",
-                          "GenICam features set on each opening, as aravissrc's features "
-                          "(\"TriggerMode=On TriggerSource=Line0\")",
-                          nullptr, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_TIMEOUT,
-      g_param_spec_uint("timeout", "Timeout",
-                        "The camera is lost when no frame came for this long (ms); also the "
-                        "time a newly opened camera has for its first frame",
-                        100, 600000, DEFAULT_TIMEOUT, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_RECONNECT_INTERVAL,
-      g_param_spec_uint("reconnect-interval", "Reconnect interval",
-                        "Wait before the first attempt to open a lost camera again (ms), doubled "
-                        "after each failed one; 0 = no reconnecting: the camera's error ends "
-                        "the stream",
-                        0, 600000, DEFAULT_RECONNECT_INTERVAL, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_RECONNECT_MAX,
-      g_param_spec_uint("reconnect-max", "Reconnect maximum",
-                        "The longest wait between two attempts (ms)", 100, 3600000,
-                        DEFAULT_RECONNECT_MAX, RW_READY));
-  g_object_class_install_property(
-      gobject_class, PROP_CONNECTED,
-      g_param_spec_boolean("connected", "Connected", "Frames come from the camera", FALSE, RO));
-  g_object_class_install_property(
-      gobject_class, PROP_RECONNECTS,
-      g_param_spec_uint64("reconnects", "Reconnects", "Times the camera came back", 0,
-                          G_MAXUINT64, 0, RO));
+                         GST_TYPE_CAPS, kRwReady),
+      [](Settings &s, const GValue *v) {
+        gst_caps_replace(&s.caps, static_cast<GstCaps *>(g_value_get_boxed(v)));
+      },
+      [](const Settings &s, GValue *v) { g_value_set_boxed(v, s.caps); });
+  props.string("features", "Features",
+               "GenICam features set on each opening, as aravissrc's features "
+               "(\"TriggerMode=On TriggerSource=Line0\")",
+               TS_FIELD(features), kRwReady);
+  props.uinteger("timeout", "Timeout",
+                 "The camera is lost when no frame came for this long (ms); also the "
+                 "time a newly opened camera has for its first frame",
+                 100, 600000, DEFAULT_TIMEOUT, TS_FIELD(timeout), kRwReady);
+  props.uinteger("reconnect-interval", "Reconnect interval",
+                 "Wait before the first attempt to open a lost camera again (ms), doubled "
+                 "after each failed one; 0 = no reconnecting: the camera's error ends "
+                 "the stream",
+                 0, 600000, DEFAULT_RECONNECT_INTERVAL, TS_FIELD(reconnect_interval), kRwReady);
+  props.uinteger("reconnect-max", "Reconnect maximum", "The longest wait between two attempts (ms)",
+                 100, 3600000, DEFAULT_RECONNECT_MAX, TS_FIELD(reconnect_max), kRwReady);
+  /* The supervisor's figures, under its own lock. */
+  props.on_object(g_param_spec_boolean("connected", "Connected", "Frames come from the camera",
+                                       FALSE, kReadOnly),
+                  nullptr, [](GObject *o, GValue *v) {
+                    State &st = *GST_TREE_CAMERA_SRC(o)->state;
+                    g_mutex_lock(&st.lock);
+                    g_value_set_boolean(v, st.phase == Phase::Streaming && st.running);
+                    g_mutex_unlock(&st.lock);
+                  });
+  props.on_object(g_param_spec_uint64("reconnects", "Reconnects", "Times the camera came back", 0,
+                                      G_MAXUINT64, 0, kReadOnly),
+                  nullptr, [](GObject *o, GValue *v) {
+                    State &st = *GST_TREE_CAMERA_SRC(o)->state;
+                    g_mutex_lock(&st.lock);
+                    g_value_set_uint64(v, st.reconnects);
+                    g_mutex_unlock(&st.lock);
+                  });
 
   gst_element_class_add_static_pad_template(element_class, &src_template);
   gst_element_class_set_static_metadata(

@@ -108,6 +108,7 @@
 
 #include "common.hpp"
 #include "elements.hpp"
+#include "properties.hpp"
 
 #include "treestereo/metrics.hpp"
 #include "treestereo/rowmap.hpp"
@@ -129,6 +130,7 @@ GST_DEBUG_CATEGORY_STATIC(treemetrics_debug);
 #define GST_CAT_DEFAULT treemetrics_debug
 
 using namespace treestereo;
+using namespace treestereo::gst;
 
 #define GST_TYPE_TREE_METRICS_EXTENT (gst_tree_metrics_extent_get_type())
 static GType gst_tree_metrics_extent_get_type(void)
@@ -165,21 +167,6 @@ static GType gst_tree_metrics_extent_get_type(void)
 #define DEFAULT_ROW_MAP_BIN 0.05
 /* lib's MetricsSmoother takes alpha in [0, 1) */
 #define MAX_SMOOTHING 0.99
-
-enum {
-  PROP_0,
-  PROP_BANDS,
-  PROP_SMOOTHING,
-  PROP_EXTENT_METHOD,
-  PROP_ROUND_LIMBS,
-  PROP_EXTREME_POINTS,
-  PROP_POST_MESSAGES,
-  PROP_SPEED,
-  PROP_TRAVEL,
-  PROP_TREES,
-  PROP_ROW_MAP_LOCATION,
-  PROP_ROW_MAP_BIN,
-};
 
 namespace {
 
@@ -670,71 +657,11 @@ static gboolean gst_tree_metrics_sink_event(GstBaseTransform *trans, GstEvent *e
       write_row_map(self, s.row_map_location);
     break;
   }
-  default: break;
+  default:
+    break;
   }
   return GST_BASE_TRANSFORM_CLASS(gst_tree_metrics_parent_class)->sink_event(trans, event);
 }
-
-static void gst_tree_metrics_set_property(GObject *object, guint prop_id, const GValue *value,
-                                          GParamSpec *pspec)
-{
-  GstTreeMetrics *self = GST_TREE_METRICS(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_BANDS: s.bands = g_value_get_int(value); break;
-  case PROP_SMOOTHING: s.smoothing = g_value_get_double(value); break;
-  case PROP_EXTENT_METHOD: s.extent = ExtentDepth(g_value_get_enum(value)); break;
-  case PROP_ROUND_LIMBS: s.round_limbs = g_value_get_boolean(value); break;
-  case PROP_EXTREME_POINTS: s.extreme_points = g_value_get_uint(value); break;
-  case PROP_POST_MESSAGES: s.post_messages = g_value_get_boolean(value); break;
-  case PROP_SPEED: s.speed = g_value_get_double(value); break;
-  case PROP_TRAVEL: s.travel = g_value_get_boolean(value); break;
-  case PROP_TREES: s.trees = g_value_get_boolean(value); break;
-  case PROP_ROW_MAP_LOCATION: {
-    const gchar *v = g_value_get_string(value);
-    s.row_map_location = v ? v : "";
-    break;
-  }
-  case PROP_ROW_MAP_BIN: s.row_map_bin = g_value_get_double(value); break;
-  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
-  }
-}
-
-static void gst_tree_metrics_get_property(GObject *object, guint prop_id, GValue *value,
-                                          GParamSpec *pspec)
-{
-  GstTreeMetrics *self = GST_TREE_METRICS(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  const Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_BANDS: g_value_set_int(value, s.bands); break;
-  case PROP_SMOOTHING: g_value_set_double(value, s.smoothing); break;
-  case PROP_EXTENT_METHOD: g_value_set_enum(value, int(s.extent)); break;
-  case PROP_ROUND_LIMBS: g_value_set_boolean(value, s.round_limbs); break;
-  case PROP_EXTREME_POINTS: g_value_set_uint(value, s.extreme_points); break;
-  case PROP_POST_MESSAGES: g_value_set_boolean(value, s.post_messages); break;
-  case PROP_SPEED: g_value_set_double(value, s.speed); break;
-  case PROP_TRAVEL: g_value_set_boolean(value, s.travel); break;
-  case PROP_TREES: g_value_set_boolean(value, s.trees); break;
-  case PROP_ROW_MAP_LOCATION:
-    g_value_set_string(value, s.row_map_location.empty() ? nullptr : s.row_map_location.c_str());
-    break;
-  case PROP_ROW_MAP_BIN: g_value_set_double(value, s.row_map_bin); break;
-  default: G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec); break;
-  }
-}
-
-static void gst_tree_metrics_finalize(GObject *object)
-{
-  GstTreeMetrics *self = GST_TREE_METRICS(object);
-  delete self->state;
-  self->state = nullptr;
-  G_OBJECT_CLASS(gst_tree_metrics_parent_class)->finalize(object);
-}
-
-#define RW_PLAYING \
-  GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)
 
 static void gst_tree_metrics_class_init(GstTreeMetricsClass *klass)
 {
@@ -744,82 +671,57 @@ static void gst_tree_metrics_class_init(GstTreeMetricsClass *klass)
 
   GST_DEBUG_CATEGORY_INIT(treemetrics_debug, "treemetrics", 0, "treestereo treemetrics");
 
-  gobject_class->set_property = gst_tree_metrics_set_property;
-  gobject_class->get_property = gst_tree_metrics_get_property;
-  gobject_class->finalize = gst_tree_metrics_finalize;
+  gobject_class->finalize = finalize_state<GstTreeMetrics, &gst_tree_metrics_parent_class>;
 
-  g_object_class_install_property(
-      gobject_class, PROP_BANDS,
-      g_param_spec_int("bands", "Bands",
-                       "Horizontal bands from the canopy's top to its bottom, each with its "
-                       "left/right edge, width and nearest-face depth",
-                       1, 64, DEFAULT_BANDS, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_SMOOTHING,
-      g_param_spec_double("smoothing", "Smoothing",
-                          "Exponential smoothing across frames: smoothed = smoothing * previous "
-                          "+ (1 - smoothing) * current; 0 = off. Raw figures are always kept.",
-                          0.0, MAX_SMOOTHING, DEFAULT_SMOOTHING, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_EXTENT_METHOD,
-      g_param_spec_enum("extent-method", "Extent method",
-                        "How the silhouette's angular extent becomes metres (height, width, "
-                        "bands, area, perimeter)",
-                        GST_TYPE_TREE_METRICS_EXTENT, int(MetricsParams{}.extent_depth),
-                        RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_ROUND_LIMBS,
-      g_param_spec_boolean("round-limbs", "Round limbs",
-                           "tangent-points: add how far the canopy reaches beyond each limb point "
-                           "(the limb is not the extreme unless the ray is straight ahead), from "
-                           "the curvature the edge points show; false = the limb points' extent",
-                           MetricsParams{}.round_limbs, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_EXTREME_POINTS,
-      g_param_spec_uint("extreme-points", "Extreme points",
-                        "Each edge of height and width reaches at least as far as the n-th most "
-                        "extreme canopy point in its direction (clusters behind the silhouette's "
-                        "edge reach further in metres than it shows); 0 = the silhouette alone",
-                        0, 10000, guint(MetricsParams{}.extreme_points), RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_POST_MESSAGES,
-      g_param_spec_boolean("post-messages", "Post messages",
-                           "Post a 'treemetrics' element message per buffer",
-                           DEFAULT_POST_MESSAGES, RW_PLAYING));
-
-  g_object_class_install_property(
-      gobject_class, PROP_SPEED,
-      g_param_spec_double("speed", "Speed",
-                          "The rig's speed along the row (m/s, towards the camera's +x) from "
-                          "wheel odometry or GNSS: when > 0 the travel is speed x the time "
-                          "between the frames' timestamps; 0 = measure it from stereo",
-                          0.0, MAX_SPEED, DEFAULT_SPEED, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_TRAVEL,
-      g_param_spec_boolean("travel", "Travel",
-                           "Estimate the rig's travel between frames from stereo when speed is "
-                           "0 (about 13 ms a frame at 1296x972); false: no travel (source none)",
-                           DEFAULT_TRAVEL, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_TREES,
-      g_param_spec_boolean("trees", "Trees",
-                           "Follow the trees along the row (stereodepth's 3D canopy) and post a "
-                           "'treestereo-tree' message per tree as it leaves the view (and the "
-                           "ones in view at EOS)",
-                           DEFAULT_TREES, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_ROW_MAP_LOCATION,
-      g_param_spec_string("row-map-location", "Row map location",
-                          "Write the row map (CSV: position_m, band, present, distance_m, fill) "
-                          "here at EOS, and its picture beside it (same name, .png); NULL = no "
-                          "row map. Set before the stream starts.",
-                          nullptr, RW_PLAYING));
-  g_object_class_install_property(
-      gobject_class, PROP_ROW_MAP_BIN,
-      g_param_spec_double("row-map-bin", "Row map bin",
-                          "Travel bin of the row map along the row (m); read when the map "
-                          "starts (the stream's first frame with a canopy)",
-                          0.005, 10.0, DEFAULT_ROW_MAP_BIN, RW_PLAYING));
+  auto props = PropertyTable<Settings>::in_state<GstTreeMetrics>(gobject_class);
+  props.integer("bands", "Bands",
+                "Horizontal bands from the canopy's top to its bottom, each with its "
+                "left/right edge, width and nearest-face depth",
+                1, 64, DEFAULT_BANDS, TS_FIELD(bands));
+  props.real("smoothing", "Smoothing",
+             "Exponential smoothing across frames: smoothed = smoothing * previous "
+             "+ (1 - smoothing) * current; 0 = off. Raw figures are always kept.",
+             0.0, MAX_SMOOTHING, DEFAULT_SMOOTHING, TS_FIELD(smoothing));
+  props.enumeration("extent-method", "Extent method",
+                    "How the silhouette's angular extent becomes metres (height, width, "
+                    "bands, area, perimeter)",
+                    GST_TYPE_TREE_METRICS_EXTENT, int(MetricsParams{}.extent_depth),
+                    TS_FIELD(extent));
+  props.boolean("round-limbs", "Round limbs",
+                "tangent-points: add how far the canopy reaches beyond each limb point "
+                "(the limb is not the extreme unless the ray is straight ahead), from "
+                "the curvature the edge points show; false = the limb points' extent",
+                MetricsParams{}.round_limbs, TS_FIELD(round_limbs));
+  props.uinteger("extreme-points", "Extreme points",
+                 "Each edge of height and width reaches at least as far as the n-th most "
+                 "extreme canopy point in its direction (clusters behind the silhouette's "
+                 "edge reach further in metres than it shows); 0 = the silhouette alone",
+                 0, 10000, guint(MetricsParams{}.extreme_points), TS_FIELD(extreme_points));
+  props.boolean("post-messages", "Post messages", "Post a 'treemetrics' element message per buffer",
+                DEFAULT_POST_MESSAGES, TS_FIELD(post_messages));
+  props.real("speed", "Speed",
+             "The rig's speed along the row (m/s, towards the camera's +x) from "
+             "wheel odometry or GNSS: when > 0 the travel is speed x the time "
+             "between the frames' timestamps; 0 = measure it from stereo",
+             0.0, MAX_SPEED, DEFAULT_SPEED, TS_FIELD(speed));
+  props.boolean("travel", "Travel",
+                "Estimate the rig's travel between frames from stereo when speed is "
+                "0 (about 13 ms a frame at 1296x972); false: no travel (source none)",
+                DEFAULT_TRAVEL, TS_FIELD(travel));
+  props.boolean("trees", "Trees",
+                "Follow the trees along the row (stereodepth's 3D canopy) and post a "
+                "'treestereo-tree' message per tree as it leaves the view (and the "
+                "ones in view at EOS)",
+                DEFAULT_TREES, TS_FIELD(trees));
+  props.string("row-map-location", "Row map location",
+               "Write the row map (CSV: position_m, band, present, distance_m, fill) "
+               "here at EOS, and its picture beside it (same name, .png); NULL = no "
+               "row map. Set before the stream starts.",
+               TS_FIELD(row_map_location));
+  props.real("row-map-bin", "Row map bin",
+             "Travel bin of the row map along the row (m); read when the map "
+             "starts (the stream's first frame with a canopy)",
+             0.005, 10.0, DEFAULT_ROW_MAP_BIN, TS_FIELD(row_map_bin));
 
   gst_element_class_add_static_pad_template(element_class, &sink_template);
   gst_element_class_add_static_pad_template(element_class, &src_template);

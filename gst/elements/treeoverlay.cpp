@@ -45,6 +45,7 @@
 
 #include "common.hpp"
 #include "elements.hpp"
+#include "properties.hpp"
 
 #include "treestereo/overlay.hpp"
 #include "treestereo/rowmap.hpp"
@@ -59,6 +60,7 @@ GST_DEBUG_CATEGORY_STATIC(treeoverlay_debug);
 #define GST_CAT_DEFAULT treeoverlay_debug
 
 using namespace treestereo;
+using namespace treestereo::gst;
 
 typedef enum {
   GST_TREE_OVERLAY_VIEWS_BOTH = 0,
@@ -72,20 +74,6 @@ typedef enum {
 
 #define DEFAULT_VIEWS GST_TREE_OVERLAY_VIEWS_BOTH
 #define DEFAULT_MATCH_STYLE GST_TREE_OVERLAY_MATCH_DOTS
-
-enum {
-  PROP_0,
-  PROP_VIEWS,
-  PROP_DRAW_CONTOUR,
-  PROP_DRAW_BOX,
-  PROP_DRAW_MATCHES,
-  PROP_MATCH_STYLE,
-  PROP_DRAW_BANDS,
-  PROP_DRAW_TEXT,
-  PROP_DEPTH_NEAR,
-  PROP_DEPTH_FAR,
-  PROP_DRAW_MAP,
-};
 
 static GType gst_tree_overlay_views_get_type(void)
 {
@@ -248,12 +236,14 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
   State *st = self->state;
   const treestereo::gst::PixelLayout layout = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(in_info));
   if (!layout.color || GST_VIDEO_INFO_FORMAT(in_info) != GST_VIDEO_INFO_FORMAT(out_info)) {
-    GST_ELEMENT_ERROR(
-        self, CORE, NEGOTIATION,
-        ("treeoverlay draws on colour frames of one format in and out, got %s: "
-         "put videoconvert before it.",
-         gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info))),
-        ("unsupported formats %" GST_PTR_FORMAT " -> %" GST_PTR_FORMAT, incaps, outcaps));
+    gchar *out = gst_caps_to_string(outcaps);
+    post_caps_error(GST_ELEMENT(self),
+                    std::string("treeoverlay draws on colour frames of one format in and out, "
+                                "got ") +
+                        gst_video_format_to_string(GST_VIDEO_INFO_FORMAT(in_info)) +
+                        ": put videoconvert before it.",
+                    incaps, std::string("unsupported formats, out caps ") + out);
+    g_free(out);
     return FALSE;
   }
   st->order = layout.order();
@@ -263,11 +253,13 @@ static gboolean gst_tree_overlay_set_info(GstVideoFilter *filter, GstCaps *incap
   const int in_w = GST_VIDEO_INFO_WIDTH(in_info), out_w = GST_VIDEO_INFO_WIDTH(out_info);
   st->crop = st->in_views == 2 && out_w == in_w / 2;
   if ((!st->crop && out_w != in_w) || GST_VIDEO_INFO_HEIGHT(in_info) != GST_VIDEO_INFO_HEIGHT(out_info)) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
-                      ("treeoverlay gives out the frame's size, or its left view's with "
-                       "views=left: set caps downstream that fit."),
-                      ("output %dx%d does not fit input %dx%d", out_w,
-                       GST_VIDEO_INFO_HEIGHT(out_info), in_w, GST_VIDEO_INFO_HEIGHT(in_info)));
+    post_caps_error(GST_ELEMENT(self),
+                    "treeoverlay gives out the frame's size, or its left view's with "
+                    "views=left: set caps downstream that fit.",
+                    nullptr,
+                    "output " + std::to_string(out_w) + "x" +
+                        std::to_string(GST_VIDEO_INFO_HEIGHT(out_info)) + " does not fit input " +
+                        std::to_string(in_w) + "x" + std::to_string(GST_VIDEO_INFO_HEIGHT(in_info)));
     return FALSE;
   }
   gst_base_transform_set_in_place(GST_BASE_TRANSFORM(self), !st->crop);
@@ -412,114 +404,6 @@ static gboolean gst_tree_overlay_transform_meta(GstBaseTransform *trans, GstBuff
       ->transform_meta(trans, outbuf, meta, inbuf);
 }
 
-static void gst_tree_overlay_set_property(GObject *object, guint prop_id, const GValue *value,
-                                          GParamSpec *pspec)
-{
-  GstTreeOverlay *self = GST_TREE_OVERLAY(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_VIEWS:
-    s.views = GstTreeOverlayViews(g_value_get_enum(value));
-    break;
-  case PROP_DRAW_CONTOUR:
-    s.style.contour = s.style.rejected = g_value_get_boolean(value);
-    break;
-  case PROP_DRAW_BOX:
-    s.style.box = g_value_get_boolean(value);
-    break;
-  case PROP_DRAW_MATCHES:
-    s.style.matches = g_value_get_boolean(value);
-    break;
-  case PROP_MATCH_STYLE:
-    s.style.match_style = g_value_get_enum(value) == GST_TREE_OVERLAY_MATCH_LINES
-                              ? MatchStyle::kLines
-                              : MatchStyle::kDots;
-    break;
-  case PROP_DRAW_BANDS:
-    s.style.bands = g_value_get_boolean(value);
-    break;
-  case PROP_DRAW_TEXT:
-    s.style.text = g_value_get_boolean(value);
-    break;
-  case PROP_DEPTH_NEAR:
-    s.style.depth_near_m = g_value_get_double(value);
-    break;
-  case PROP_DEPTH_FAR:
-    s.style.depth_far_m = g_value_get_double(value);
-    break;
-  case PROP_DRAW_MAP:
-    s.draw_map = g_value_get_boolean(value);
-    break;
-  default:
-    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-    break;
-  }
-}
-
-static void gst_tree_overlay_get_property(GObject *object, guint prop_id, GValue *value,
-                                          GParamSpec *pspec)
-{
-  GstTreeOverlay *self = GST_TREE_OVERLAY(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  const Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_VIEWS:
-    g_value_set_enum(value, s.views);
-    break;
-  case PROP_DRAW_CONTOUR:
-    g_value_set_boolean(value, s.style.contour);
-    break;
-  case PROP_DRAW_BOX:
-    g_value_set_boolean(value, s.style.box);
-    break;
-  case PROP_DRAW_MATCHES:
-    g_value_set_boolean(value, s.style.matches);
-    break;
-  case PROP_MATCH_STYLE:
-    g_value_set_enum(value, s.style.match_style == MatchStyle::kLines
-                                ? GST_TREE_OVERLAY_MATCH_LINES
-                                : GST_TREE_OVERLAY_MATCH_DOTS);
-    break;
-  case PROP_DRAW_BANDS:
-    g_value_set_boolean(value, s.style.bands);
-    break;
-  case PROP_DRAW_TEXT:
-    g_value_set_boolean(value, s.style.text);
-    break;
-  case PROP_DEPTH_NEAR:
-    g_value_set_double(value, s.style.depth_near_m);
-    break;
-  case PROP_DEPTH_FAR:
-    g_value_set_double(value, s.style.depth_far_m);
-    break;
-  case PROP_DRAW_MAP:
-    g_value_set_boolean(value, s.draw_map);
-    break;
-  default:
-    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-    break;
-  }
-}
-
-static void gst_tree_overlay_finalize(GObject *object)
-{
-  GstTreeOverlay *self = GST_TREE_OVERLAY(object);
-  delete self->state;
-  self->state = nullptr;
-  G_OBJECT_CLASS(gst_tree_overlay_parent_class)->finalize(object);
-}
-
-static void install_layer(GObjectClass *klass, guint id, const char *name, const char *nick,
-                          const char *blurb)
-{
-  g_object_class_install_property(
-      klass, id,
-      g_param_spec_boolean(name, nick, blurb, TRUE,
-                           GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                       GST_PARAM_MUTABLE_PLAYING)));
-}
-
 static void gst_tree_overlay_class_init(GstTreeOverlayClass *klass)
 {
   GObjectClass *gobject_class = G_OBJECT_CLASS(klass);
@@ -529,59 +413,59 @@ static void gst_tree_overlay_class_init(GstTreeOverlayClass *klass)
 
   GST_DEBUG_CATEGORY_INIT(treeoverlay_debug, "treeoverlay", 0, "treestereo treeoverlay");
 
-  gobject_class->set_property = gst_tree_overlay_set_property;
-  gobject_class->get_property = gst_tree_overlay_get_property;
-  gobject_class->finalize = gst_tree_overlay_finalize;
+  gobject_class->finalize = finalize_state<GstTreeOverlay, &gst_tree_overlay_parent_class>;
 
-  g_object_class_install_property(
-      gobject_class, PROP_VIEWS,
-      g_param_spec_enum("views", "Views",
-                        "Draw on every view of the frame, or output the left view alone",
-                        gst_tree_overlay_views_get_type(), DEFAULT_VIEWS,
-                        GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                    GST_PARAM_MUTABLE_READY)));
-  install_layer(gobject_class, PROP_DRAW_CONTOUR, "draw-contour", "Draw contour",
-                "Draw the canopy's outer contour (yellow) and, with a 3D canopy upstream, tint "
-                "the vegetation depth rejected (grey-blue)");
-  install_layer(gobject_class, PROP_DRAW_BOX, "draw-box", "Draw box",
-                "Draw the canopy's bounding box (cyan)");
-  install_layer(gobject_class, PROP_DRAW_MATCHES, "draw-matches", "Draw matches",
-                "Draw the stereo matches coloured by depth (near red, far blue, grey unknown)");
-  g_object_class_install_property(
-      gobject_class, PROP_MATCH_STYLE,
+  auto props = PropertyTable<Settings>::in_state<GstTreeOverlay>(gobject_class);
+  props.enumeration("views", "Views",
+                    "Draw on every view of the frame, or output the left view alone",
+                    gst_tree_overlay_views_get_type(), DEFAULT_VIEWS, TS_FIELD(views), kRwReady);
+  props.custom(
+      g_param_spec_boolean(
+          "draw-contour", "Draw contour",
+          "Draw the canopy's outer contour (yellow) and, with a 3D canopy upstream, tint "
+          "the vegetation depth rejected (grey-blue)",
+          TRUE, kRwPlaying),
+      [](Settings &s, const GValue *v) {
+        s.style.contour = s.style.rejected = g_value_get_boolean(v);
+      },
+      [](const Settings &s, GValue *v) { g_value_set_boolean(v, s.style.contour); });
+  props.boolean("draw-box", "Draw box", "Draw the canopy's bounding box (cyan)", true,
+                TS_FIELD(style.box));
+  props.boolean("draw-matches", "Draw matches",
+                "Draw the stereo matches coloured by depth (near red, far blue, grey unknown)",
+                true, TS_FIELD(style.matches));
+  props.custom(
       g_param_spec_enum("match-style", "Match style", "How a match is drawn",
-                        gst_tree_overlay_match_style_get_type(), DEFAULT_MATCH_STYLE,
-                        GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                    GST_PARAM_MUTABLE_PLAYING)));
-  install_layer(gobject_class, PROP_DRAW_BANDS, "draw-bands", "Draw bands",
-                "Draw the band profile of treemetrics (needs the geometry meta)");
-  install_layer(gobject_class, PROP_DRAW_TEXT, "draw-text", "Draw text",
-                "Draw the panel with distance, height, width, thickness and the depth legend");
-  g_object_class_install_property(
-      gobject_class, PROP_DRAW_MAP,
-      g_param_spec_boolean("draw-map", "Draw map",
-                           "Draw the row canopy map as a strip across the bottom of the left "
-                           "view, scrolling with the travel (needs treemetrics' position and "
-                           "stereodepth's canopy meta)",
-                           FALSE,
-                           GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                       GST_PARAM_MUTABLE_PLAYING)));
-  g_object_class_install_property(
-      gobject_class, PROP_DEPTH_NEAR,
-      g_param_spec_double("depth-near", "Depth near",
-                          "Depth (m) drawn red; with depth-far <= depth-near the colour range "
-                          "follows each frame's 5th..95th percentile of match depths",
-                          0.0, 1000.0, 0.0,
-                          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                      GST_PARAM_MUTABLE_PLAYING)));
-  g_object_class_install_property(
-      gobject_class, PROP_DEPTH_FAR,
-      g_param_spec_double("depth-far", "Depth far",
-                          "Depth (m) drawn blue (see depth-near); a fixed range keeps the "
-                          "colours steady in a recording",
-                          0.0, 1000.0, 0.0,
-                          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                      GST_PARAM_MUTABLE_PLAYING)));
+                        gst_tree_overlay_match_style_get_type(), DEFAULT_MATCH_STYLE, kRwPlaying),
+      [](Settings &s, const GValue *v) {
+        s.style.match_style = g_value_get_enum(v) == GST_TREE_OVERLAY_MATCH_LINES
+                                  ? MatchStyle::kLines
+                                  : MatchStyle::kDots;
+      },
+      [](const Settings &s, GValue *v) {
+        g_value_set_enum(v, s.style.match_style == MatchStyle::kLines
+                                ? GST_TREE_OVERLAY_MATCH_LINES
+                                : GST_TREE_OVERLAY_MATCH_DOTS);
+      });
+  props.boolean("draw-bands", "Draw bands",
+                "Draw the band profile of treemetrics (needs the geometry meta)", true,
+                TS_FIELD(style.bands));
+  props.boolean("draw-text", "Draw text",
+                "Draw the panel with distance, height, width, thickness and the depth legend", true,
+                TS_FIELD(style.text));
+  props.real("depth-near", "Depth near",
+             "Depth (m) drawn red; with depth-far <= depth-near the colour range "
+             "follows each frame's 5th..95th percentile of match depths",
+             0.0, 1000.0, 0.0, TS_FIELD(style.depth_near_m));
+  props.real("depth-far", "Depth far",
+             "Depth (m) drawn blue (see depth-near); a fixed range keeps the "
+             "colours steady in a recording",
+             0.0, 1000.0, 0.0, TS_FIELD(style.depth_far_m));
+  props.boolean("draw-map", "Draw map",
+                "Draw the row canopy map as a strip across the bottom of the left "
+                "view, scrolling with the travel (needs treemetrics' position and "
+                "stereodepth's canopy meta)",
+                FALSE, TS_FIELD(draw_map));
 
   gst_element_class_add_static_pad_template(element_class, &sink_template);
   gst_element_class_add_static_pad_template(element_class, &src_template);

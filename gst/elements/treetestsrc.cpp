@@ -48,6 +48,7 @@
 
 #include "common.hpp"
 #include "elements.hpp"
+#include "properties.hpp"
 
 #include "treestereo/calibration.hpp"
 #include "treestereo/scene.hpp"
@@ -65,27 +66,7 @@ GST_DEBUG_CATEGORY_STATIC(treetestsrc_debug);
 #define GST_CAT_DEFAULT treetestsrc_debug
 
 using namespace treestereo;
-
-enum {
-  PROP_0,
-  PROP_VIEW,
-  PROP_SEED,
-  PROP_DISTANCE,
-  PROP_CANOPY_HEIGHT,
-  PROP_CANOPY_WIDTH,
-  PROP_BASELINE,
-  PROP_SPEED,
-  PROP_LIGHT,
-  PROP_NOISE,
-  PROP_IS_LIVE,
-  PROP_CALIBRATION_OUT,
-  PROP_TRUTH_MAPS,
-  PROP_SCENE,
-  PROP_ROW_GAP_MIN,
-  PROP_ROW_GAP_MAX,
-  PROP_ROW_SPACING,
-  PROP_TOUCHING_PAIR,
-};
+using namespace treestereo::gst;
 
 #define DEFAULT_WIDTH 1296
 #define DEFAULT_HEIGHT 972
@@ -344,7 +325,10 @@ static GstFlowReturn gst_tree_test_src_fill(GstPushSrc *psrc, GstBuffer *buf)
   GstTreeTestSrc *self = GST_TREE_TEST_SRC(psrc);
   State *st = self->state;
   if (GST_VIDEO_INFO_FORMAT(&st->info) == GST_VIDEO_FORMAT_UNKNOWN) {
-    GST_ELEMENT_ERROR(self, CORE, NEGOTIATION, (nullptr), ("format was not negotiated"));
+    post_caps_error(GST_ELEMENT(self),
+                    "treetestsrc was asked for a frame before its caps were agreed: link it to "
+                    "an element that takes raw video.",
+                    nullptr, "format was not negotiated");
     return GST_FLOW_NOT_NEGOTIATED;
   }
   const Settings s = snapshot(self);
@@ -377,165 +361,16 @@ static gboolean gst_tree_test_src_is_seekable(GstBaseSrc *)
   return FALSE;
 }
 
-static void gst_tree_test_src_set_property(GObject *object, guint prop_id, const GValue *value,
-                                           GParamSpec *pspec)
+/* A length property in metres over a scene length in mm; -1 m, where the range has it, stands for
+ * the scene's default. */
+static void install_metres(PropertyTable<Settings> &props, const char *name, const char *nick,
+                           const char *blurb, double min, double max, double def,
+                           double SceneParams::*mm)
 {
-  GstTreeTestSrc *self = GST_TREE_TEST_SRC(object);
-  bool live_changed = false;
-  gboolean live = FALSE;
-  {
-    std::lock_guard<std::mutex> g(self->state->lock);
-    Settings &s = self->state->settings;
-    switch (prop_id) {
-    case PROP_VIEW:
-      s.view = g_value_get_enum(value);
-      break;
-    case PROP_SEED:
-      s.scene.seed = g_value_get_uint64(value);
-      break;
-    case PROP_DISTANCE:
-      s.scene.distance_mm = 1000.0 * g_value_get_double(value);
-      break;
-    case PROP_CANOPY_HEIGHT:
-      s.scene.canopy_height_mm = 1000.0 * g_value_get_double(value);
-      break;
-    case PROP_CANOPY_WIDTH:
-      s.scene.canopy_width_mm = 1000.0 * g_value_get_double(value);
-      break;
-    case PROP_BASELINE:
-      s.scene.baseline_mm = g_value_get_double(value);
-      break;
-    case PROP_SPEED:
-      s.scene.speed_m_s = g_value_get_double(value);
-      break;
-    case PROP_LIGHT:
-      s.scene.light = g_value_get_double(value);
-      break;
-    case PROP_NOISE:
-      s.scene.noise = g_value_get_double(value);
-      break;
-    case PROP_IS_LIVE:
-      s.is_live = g_value_get_boolean(value);
-      live = s.is_live;
-      live_changed = true;
-      break;
-    case PROP_CALIBRATION_OUT: {
-      const gchar *v = g_value_get_string(value);
-      s.calibration_out = v ? v : "";
-      break;
-    }
-    case PROP_TRUTH_MAPS:
-      s.truth_maps = g_value_get_boolean(value);
-      break;
-    case PROP_SCENE:
-      s.scene.kind = SceneKind(g_value_get_enum(value));
-      break;
-    case PROP_ROW_GAP_MIN:
-      s.scene.row_gap_min_mm = mm_or_default(g_value_get_double(value));
-      break;
-    case PROP_ROW_GAP_MAX:
-      s.scene.row_gap_max_mm = mm_or_default(g_value_get_double(value));
-      break;
-    case PROP_ROW_SPACING:
-      s.scene.row_spacing_mm = mm_or_default(g_value_get_double(value));
-      break;
-    case PROP_TOUCHING_PAIR: {
-      const int k = g_value_get_int(value);
-      s.scene.touching_pair = k < 0 ? SceneParams::kNoTouchingPair : k;
-      break;
-    }
-    default:
-      G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-      return;
-    }
-    s.generation++;
-  }
-  if (live_changed)
-    gst_base_src_set_live(GST_BASE_SRC(self), live);
-}
-
-static void gst_tree_test_src_get_property(GObject *object, guint prop_id, GValue *value,
-                                           GParamSpec *pspec)
-{
-  GstTreeTestSrc *self = GST_TREE_TEST_SRC(object);
-  std::lock_guard<std::mutex> g(self->state->lock);
-  const Settings &s = self->state->settings;
-  switch (prop_id) {
-  case PROP_VIEW:
-    g_value_set_enum(value, s.view);
-    break;
-  case PROP_SEED:
-    g_value_set_uint64(value, s.scene.seed);
-    break;
-  case PROP_DISTANCE:
-    g_value_set_double(value, s.scene.distance_mm / 1000.0);
-    break;
-  case PROP_CANOPY_HEIGHT:
-    g_value_set_double(value, s.scene.canopy_height_mm / 1000.0);
-    break;
-  case PROP_CANOPY_WIDTH:
-    g_value_set_double(value, s.scene.canopy_width_mm / 1000.0);
-    break;
-  case PROP_BASELINE:
-    g_value_set_double(value, s.scene.baseline_mm);
-    break;
-  case PROP_SPEED:
-    g_value_set_double(value, s.scene.speed_m_s);
-    break;
-  case PROP_LIGHT:
-    g_value_set_double(value, s.scene.light);
-    break;
-  case PROP_NOISE:
-    g_value_set_double(value, s.scene.noise);
-    break;
-  case PROP_IS_LIVE:
-    g_value_set_boolean(value, s.is_live);
-    break;
-  case PROP_CALIBRATION_OUT:
-    g_value_set_string(value, s.calibration_out.empty() ? nullptr : s.calibration_out.c_str());
-    break;
-  case PROP_TRUTH_MAPS:
-    g_value_set_boolean(value, s.truth_maps);
-    break;
-  case PROP_SCENE:
-    g_value_set_enum(value, int(s.scene.kind));
-    break;
-  case PROP_ROW_GAP_MIN:
-    g_value_set_double(value, m_or_default(s.scene.row_gap_min_mm));
-    break;
-  case PROP_ROW_GAP_MAX:
-    g_value_set_double(value, m_or_default(s.scene.row_gap_max_mm));
-    break;
-  case PROP_ROW_SPACING:
-    g_value_set_double(value, m_or_default(s.scene.row_spacing_mm));
-    break;
-  case PROP_TOUCHING_PAIR:
-    g_value_set_int(value, s.scene.touching_pair == SceneParams::kNoTouchingPair
-                               ? -1
-                               : s.scene.touching_pair);
-    break;
-  default:
-    G_OBJECT_WARN_INVALID_PROPERTY_ID(object, prop_id, pspec);
-    break;
-  }
-}
-
-static void gst_tree_test_src_finalize(GObject *object)
-{
-  GstTreeTestSrc *self = GST_TREE_TEST_SRC(object);
-  delete self->state;
-  self->state = nullptr;
-  G_OBJECT_CLASS(gst_tree_test_src_parent_class)->finalize(object);
-}
-
-static void install_double(GObjectClass *klass, guint id, const char *name, const char *nick,
-                           const char *blurb, double min, double max, double def)
-{
-  g_object_class_install_property(
-      klass, id,
-      g_param_spec_double(
-          name, nick, blurb, min, max, def,
-          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)));
+  props.custom(
+      g_param_spec_double(name, nick, blurb, min, max, def, kRwPlaying),
+      [mm](Settings &s, const GValue *v) { s.scene.*mm = mm_or_default(g_value_get_double(v)); },
+      [mm](const Settings &s, GValue *v) { g_value_set_double(v, m_or_default(s.scene.*mm)); });
 }
 
 static void gst_tree_test_src_class_init(GstTreeTestSrcClass *klass)
@@ -548,83 +383,82 @@ static void gst_tree_test_src_class_init(GstTreeTestSrcClass *klass)
 
   GST_DEBUG_CATEGORY_INIT(treetestsrc_debug, "treetestsrc", 0, "treestereo synthetic orchard");
 
-  gobject_class->set_property = gst_tree_test_src_set_property;
-  gobject_class->get_property = gst_tree_test_src_get_property;
-  gobject_class->finalize = gst_tree_test_src_finalize;
+  gobject_class->finalize = finalize_state<GstTreeTestSrc, &gst_tree_test_src_parent_class>;
 
-  g_object_class_install_property(
-      gobject_class, PROP_VIEW,
-      g_param_spec_enum(
-          "view", "View", "Which camera of the rig renders", gst_tree_test_src_view_get_type(),
-          LEFT, GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_READY)));
-  g_object_class_install_property(
-      gobject_class, PROP_SEED,
-      g_param_spec_uint64(
-          "seed", "Seed", "The tree, its textures and the sensor noise", 0, G_MAXUINT64, d.seed,
-          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)));
-  install_double(gobject_class, PROP_DISTANCE, "distance", "Distance",
-                 "Distance from the left camera to the trunk (m)", 0.5, 10.0,
-                 d.distance_mm / 1000.0);
-  install_double(gobject_class, PROP_CANOPY_HEIGHT, "canopy-height", "Canopy height",
-                 "True vertical extent of the canopy (m)", 0.1, 5.0, d.canopy_height_mm / 1000.0);
-  install_double(gobject_class, PROP_CANOPY_WIDTH, "canopy-width", "Canopy width",
-                 "True horizontal extent of the canopy (m)", 0.1, 5.0, d.canopy_width_mm / 1000.0);
-  install_double(gobject_class, PROP_BASELINE, "baseline", "Baseline",
-                 "Distance between the two cameras (mm)", 5.0, 1000.0, d.baseline_mm);
-  install_double(gobject_class, PROP_SPEED, "speed", "Speed",
-                 "Lateral speed of the sprayer along the row (m/s)", -20.0, 20.0, d.speed_m_s);
-  install_double(gobject_class, PROP_LIGHT, "light", "Light",
-                 "Light level (1 = nominal; the paper's +-30% is 0.7-1.3)", 0.2, 2.0, d.light);
-  install_double(gobject_class, PROP_NOISE, "noise", "Noise",
-                 "Sensor noise standard deviation (8-bit levels)", 0.0, 50.0, d.noise);
-  g_object_class_install_property(
-      gobject_class, PROP_IS_LIVE,
-      g_param_spec_boolean(
-          "is-live", "Is live", "Pace frames by the clock like a camera", FALSE,
-          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_READY)));
-  g_object_class_install_property(
-      gobject_class, PROP_CALIBRATION_OUT,
-      g_param_spec_string(
-          "calibration-out", "Calibration out",
-          "Write the rig's true calibration (OpenCV YAML/XML by extension) here "
-          "once the frame size is known",
-          nullptr,
-          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_READY)));
-  g_object_class_install_property(
-      gobject_class, PROP_TRUTH_MAPS,
-      g_param_spec_boolean(
-          "truth-maps", "Truth maps",
-          "Attach the per-pixel depth and canopy mask to the ground-truth meta", TRUE,
-          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)));
-
-  g_object_class_install_property(
-      gobject_class, PROP_SCENE,
-      g_param_spec_enum(
-          "scene", "Scene", "What surrounds the tree: lab, orchard or hedgerow",
-          gst_tree_test_src_scene_get_type(), int(SceneKind::Lab),
-          GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS | GST_PARAM_MUTABLE_PLAYING)));
-  install_double(gobject_class, PROP_ROW_GAP_MIN, "row-gap-min", "Row gap min",
+  auto props = PropertyTable<Settings>::in_state<GstTreeTestSrc>(gobject_class);
+  props.after_set([](Settings &s) { s.generation++; }); // the scene is rendered anew
+  props.enumeration("view", "View", "Which camera of the rig renders",
+                    gst_tree_test_src_view_get_type(), LEFT, TS_FIELD(view), kRwReady);
+  props.uint64("seed", "Seed", "The tree, its textures and the sensor noise", 0, G_MAXUINT64,
+               d.seed, TS_FIELD(scene.seed));
+  install_metres(props, "distance", "Distance", "Distance from the left camera to the trunk (m)",
+                 0.5, 10.0, d.distance_mm / 1000.0, &SceneParams::distance_mm);
+  install_metres(props, "canopy-height", "Canopy height", "True vertical extent of the canopy (m)",
+                 0.1, 5.0, d.canopy_height_mm / 1000.0, &SceneParams::canopy_height_mm);
+  install_metres(props, "canopy-width", "Canopy width", "True horizontal extent of the canopy (m)",
+                 0.1, 5.0, d.canopy_width_mm / 1000.0, &SceneParams::canopy_width_mm);
+  props.real("baseline", "Baseline", "Distance between the two cameras (mm)", 5.0, 1000.0,
+             d.baseline_mm, TS_FIELD(scene.baseline_mm));
+  props.real("speed", "Speed", "Lateral speed of the sprayer along the row (m/s)", -20.0, 20.0,
+             d.speed_m_s, TS_FIELD(scene.speed_m_s));
+  props.real("light", "Light", "Light level (1 = nominal; the paper's +-30% is 0.7-1.3)", 0.2, 2.0,
+             d.light, TS_FIELD(scene.light));
+  props.real("noise", "Noise", "Sensor noise standard deviation (8-bit levels)", 0.0, 50.0, d.noise,
+             TS_FIELD(scene.noise));
+  props.on_object(
+      g_param_spec_boolean("is-live", "Is live", "Pace frames by the clock like a camera", FALSE,
+                           kRwReady),
+      [](GObject *o, const GValue *v) {
+        State &st = *GST_TREE_TEST_SRC(o)->state;
+        const gboolean live = g_value_get_boolean(v);
+        {
+          std::lock_guard<std::mutex> g(st.lock);
+          st.settings.is_live = live;
+          st.settings.generation++;
+        }
+        gst_base_src_set_live(GST_BASE_SRC(o), live); // takes the object lock
+      },
+      [](GObject *o, GValue *v) {
+        State &st = *GST_TREE_TEST_SRC(o)->state;
+        std::lock_guard<std::mutex> g(st.lock);
+        g_value_set_boolean(v, st.settings.is_live);
+      });
+  props.string("calibration-out", "Calibration out",
+               "Write the rig's true calibration (OpenCV YAML/XML by extension) here "
+               "once the frame size is known",
+               TS_FIELD(calibration_out), kRwReady);
+  props.boolean("truth-maps", "Truth maps",
+                "Attach the per-pixel depth and canopy mask to the ground-truth meta", TRUE,
+                TS_FIELD(truth_maps));
+  props.enumeration("scene", "Scene", "What surrounds the tree: lab, orchard or hedgerow",
+                    gst_tree_test_src_scene_get_type(), int(SceneKind::Lab), TS_FIELD(scene.kind));
+  install_metres(props, "row-gap-min", "Row gap min",
                  "Smallest gap between neighbouring canopies of the row (m; negative = "
                  "overlap, at least -half the canopy width; -1 = the scene's default: orchard "
                  "0.2, hedgerow -0.15 canopy widths)",
-                 -1.0, 20.0, -1.0);
-  install_double(gobject_class, PROP_ROW_GAP_MAX, "row-gap-max", "Row gap max",
+                 -1.0, 20.0, -1.0, &SceneParams::row_gap_min_mm);
+  install_metres(props, "row-gap-max", "Row gap max",
                  "Largest gap between neighbouring canopies of the row (m; -1 = the scene's "
                  "default: orchard 0.6, hedgerow 0)",
-                 -1.0, 20.0, -1.0);
-  install_double(gobject_class, PROP_ROW_SPACING, "row-spacing", "Row spacing",
+                 -1.0, 20.0, -1.0, &SceneParams::row_gap_max_mm);
+  install_metres(props, "row-spacing", "Row spacing",
                  "Distance from the row to the next row behind it (m, 1.5-8; -1 = the scene's "
                  "default 3.5)",
-                 -1.0, 8.0, -1.0);
-  g_object_class_install_property(
-      gobject_class, PROP_TOUCHING_PAIR,
+                 -1.0, 8.0, -1.0, &SceneParams::row_spacing_mm);
+  props.custom(
       g_param_spec_int("touching-pair", "Touching pair",
                        "Orchard and hedgerow: the canopies of row trees K and K + 1 touch "
                        "(overlapping by 5 cm; tree 0 stands at tree-x, trees ahead count up "
                        "along the drive); -1 = none",
-                       -1, 100, -1,
-                       GParamFlags(G_PARAM_READWRITE | G_PARAM_STATIC_STRINGS |
-                                   GST_PARAM_MUTABLE_PLAYING)));
+                       -1, 100, -1, kRwPlaying),
+      [](Settings &s, const GValue *v) {
+        const int k = g_value_get_int(v);
+        s.scene.touching_pair = k < 0 ? SceneParams::kNoTouchingPair : k;
+      },
+      [](const Settings &s, GValue *v) {
+        g_value_set_int(
+            v, s.scene.touching_pair == SceneParams::kNoTouchingPair ? -1 : s.scene.touching_pair);
+      });
 
   gst_element_class_add_static_pad_template(element_class, &src_template);
   gst_element_class_set_static_metadata(
