@@ -39,7 +39,7 @@
 #include "common.hpp"
 #include "elements.hpp"
 
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/rectify.hpp"
 
 #include <gst/base/gstaggregator.h>

@@ -49,7 +49,7 @@
 #include "common.hpp"
 #include "elements.hpp"
 
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/scene.hpp"
 
 #include <gst/base/gstpushsrc.h>
