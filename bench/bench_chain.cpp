@@ -35,7 +35,7 @@
 // CPU use: getrusage(RUSAGE_SELF) user+sys over wall time over the same frames (200 % = both
 // cores busy). Peak RSS: VmHWM of the process, reset (malloc_trim, then clear_refs 5) before
 // each pipeline; it includes the preloaded frames, reported separately.
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/rectify.hpp"
 #include "treestereo/scene.hpp"
 #include "treestereo/stats.hpp"

@@ -6,7 +6,7 @@
 #pragma once
 
 #include "sweep.hpp"
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/scene.hpp"
 
 #include <gst/app/gstappsink.h>

@@ -1,6 +1,6 @@
 // treestereo-calibrate: stereo calibration from chessboard image pairs, and a check of an
 // existing calibration's rectification on such pairs.
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/chessboard.hpp"
 
 #include <opencv2/imgcodecs.hpp>

@@ -9,8 +9,9 @@
 // its last second or so; JSON and CSV lines go out whole, one write each (docs/reliability.md).
 // An output that cannot be written (missing folder, disk full) is an error naming the file:
 // at the start before the pipeline runs, later it stops the measuring with exit status 1.
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/json.hpp"
+#include "treestereo/record_json.hpp"
 #include "treestereo/rowmap.hpp"
 #include "treestereo/rowtrack.hpp"
 #include "treestereo/scene.hpp"

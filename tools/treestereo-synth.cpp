@@ -4,7 +4,7 @@
 // the measuring tool on files. Output is byte-for-byte reproducible for the same options.
 // --scene orchard|hedgerow stands the tree in a row (neighbours, a row behind, grass); truth.json
 // then also names the scene, the tree in front and the near-row trees in view of each frame.
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/json.hpp"
 #include "treestereo/rectify.hpp"
 #include "treestereo/scene.hpp"

@@ -40,7 +40,7 @@
 #include "elements.hpp"
 #include "properties.hpp"
 
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/rectify.hpp"
 
 #include <gst/base/gstaggregator.h>

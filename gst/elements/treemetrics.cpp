@@ -28,7 +28,7 @@
  * Height and width convert the silhouette's angular extent into metres by
  * #treemetrics:extent-method (default `tangent-points`: each silhouette edge at the depth of
  * the points where its ray touches the canopy; `round-canopy`: exact for a canopy that is a
- * solid of revolution about a vertical axis; see lib/include/treestereo/metrics.hpp), with
+ * solid of revolution about a vertical axis; see lib/core/include/treestereo/metrics.hpp), with
  * #treemetrics:round-limbs (default true) adding how far a rounded canopy reaches beyond each
  * limb point. Each edge then reaches at least as far as the #treemetrics:extreme-points th
  * (default 6th) most extreme canopy point in its direction: the canopy's 3D extreme often

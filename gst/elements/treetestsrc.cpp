@@ -50,7 +50,7 @@
 #include "elements.hpp"
 #include "properties.hpp"
 
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/scene.hpp"
 
 #include <gst/base/gstpushsrc.h>

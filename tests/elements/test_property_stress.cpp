@@ -22,7 +22,7 @@
  * project code: the test thread (segmentation to metrics), the aggregator's thread
  * (rectification) and the setter thread (set_property), which is exactly what the test is
  * about. */
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/rectify.hpp"
 #include "treestereo/scene.hpp"
 

@@ -7,7 +7,7 @@
 //   2  ROS pair left.yaml;right.yaml     5  a gzip-named file calib.yml.gz
 // A CalibrationError (or any std::exception) is a fine answer; a crash, a leak, undefined
 // behaviour or a calibration that does not survive save + load again is a bug.
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 
 #include <cmath>
 #include <cstdint>

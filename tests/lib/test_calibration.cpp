@@ -1,4 +1,4 @@
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
@@ -413,7 +413,7 @@ TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
   expect_error([&] { load_calibration(dir.file("broken.xml")); }, "broken.xml", "", "not a valid OpenCV");
   // fuzz-calibration's finds and the classes they stand for: OpenCV 4.6's YAML parser loops
   // forever on each of these (and its XML parser crashed on the last), so lib reads the files
-  // itself (lib/src/document.cpp) and refuses these with the line named.
+  // itself (lib/io/src/document.cpp) and refuses these with the line named.
   const struct {
     const char *name, *text, *why;
   } hangs[] = {

@@ -1,8 +1,8 @@
-// lib's internal YAML/XML reader (lib/src/document.hpp), which reads calibration files in place
+// lib's internal YAML/XML reader (lib/io/src/document.hpp), which reads calibration files in place
 // of OpenCV's parser: what OpenCV's FileStorage writes reads back as OpenCV itself reads it,
 // hand-written YAML and ROS files read as YAML means them, and malformed text is an error that
 // names the line, never a crash or a hang (the inputs that crashed or hung OpenCV 4.6 included).
-#include "../../lib/src/document.hpp"
+#include "../../lib/io/src/document.hpp"
 
 #include <gtest/gtest.h>
 

@@ -3,6 +3,7 @@
 // front's measurements. Frames where the tree is clipped carry wrong values on purpose: none of
 // them may reach a record.
 #include "treestereo/rowtrack.hpp"
+#include "treestereo/record_json.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// The project's upright SIFT (lib/src/sift.cpp) against OpenCV 4.6's SIFT as the reference: the
+// The project's upright SIFT (lib/core/src/sift.cpp) against OpenCV 4.6's SIFT as the reference: the
 // same places and scales, and at angle 0 the same descriptors, on a real photograph (a fixture
 // view of the pipeline tests); and a blob found at its sub-pixel centre.
 #include "treestereo/sift.hpp"

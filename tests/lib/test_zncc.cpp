@@ -1,6 +1,6 @@
-// lib's internal correlation (lib/src/zncc.hpp), shared by refinement and densification: the
+// lib's internal correlation (lib/core/src/zncc.hpp), shared by refinement and densification: the
 // ZNCC against its definition, the same with and without the vector loop, and its limits.
-#include "../../lib/src/zncc.hpp"
+#include "../../lib/core/src/zncc.hpp"
 
 #include <gtest/gtest.h>
 

@@ -32,7 +32,7 @@
  * Samples memory every 1 % of the run and prints VmRSS, glibc's heap in use and the heap it holds
  * (in use + free in its arenas) every 10 %. */
 #include "../common/finite_fields.hpp"
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/scene.hpp"
 #include "treestereo/stats.hpp"
 

@@ -6,7 +6,7 @@
  * tree-present=false and carry no figure; the good frames measure their own tree (not the
  * previous one), and the smoother forgot the first tree. A zero-size buffer ends in an error
  * message, not a crash or a hang. */
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/scene.hpp"
 
 #include <opencv2/imgproc.hpp>

@@ -2,7 +2,7 @@
  * the calibration treetestsrc wrote; stereorectify does the same inside a pipeline; the committed
  * fixtures replay through multifilesrc. Rows are checked with OpenCV's own SIFT and matcher,
  * independent of the project's matcher. */
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/stats.hpp"
 
 #include <opencv2/calib3d.hpp>

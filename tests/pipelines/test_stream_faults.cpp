@@ -11,7 +11,7 @@
  *  - EOS on one pad only: the pipeline reaches EOS.
  *  - a flushing seek back to 0 on file input: the frames after it are measured again with the
  *    same figures, and the messages' stream time restarts. */
-#include "treestereo/calibration.hpp"
+#include "treestereo/calibration_file.hpp"
 #include "treestereo/scene.hpp"
 
 #include <cmath>

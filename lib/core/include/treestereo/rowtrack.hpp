@@ -140,12 +140,6 @@ struct TreeRecord {
                                    // frames while still in view, not because it left
 };
 
-// One JSON line (no newline) with DESIGN.md's names: id, position_m, start_m, end_m,
-// distance_m, height_m, width_m, thickness_m, bands, frames, confidence, plus complete,
-// start_seen, end_seen, frames_seen, spacing_m, gap_m, lost, mode. A value the record lacks is
-// absent, never null.
-std::string to_json(const TreeRecord &record);
-
 class TreeTracker {
 public:
   explicit TreeTracker(const TrackerParams &params = TrackerParams()); // validates

@@ -1,0 +1,16 @@
+// The row's tree records (treestereo/rowtrack.hpp) as JSON, for the tools' tree files.
+#pragma once
+
+#include "treestereo/rowtrack.hpp"
+
+#include <string>
+
+namespace treestereo {
+
+// One JSON line (no newline) with DESIGN.md's names: id, position_m, start_m, end_m,
+// distance_m, height_m, width_m, thickness_m, bands, frames, confidence, plus complete,
+// start_seen, end_seen, frames_seen, spacing_m, gap_m, lost, mode. A value the record lacks is
+// absent, never null.
+std::string to_json(const TreeRecord &record);
+
+} // namespace treestereo
