@@ -196,6 +196,7 @@ struct State {
   GstVideoInfo info;
   bool info_set = false;
   bool warned_no_densify = false; // the reason densification is skipped was said once
+  GroundTracker ground;           // ground=fit: the ground of the frames before
 };
 
 /* What one buffer gives: the points, their figures and (dense) the depth map. */
@@ -327,6 +328,10 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
     throw BadInput("could not map the frame for the 3D canopy: it is smaller than its caps say");
   const cv::Mat mat = frame.mat();
   p.grid.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
+  // A break in the stream (a camera lost and back) may have moved the rig: no prior then.
+  if (GST_BUFFER_FLAG_IS_SET(buf, GST_BUFFER_FLAG_DISCONT))
+    st->ground.reset();
+  p.canopy.ground_prior = st->ground.prior();
   const gint64 t0 = g_get_monotonic_time();
   CanopyDepth c = canopy_depth(treestereo::gst::view_mat(mat, LEFT, 2),
                                treestereo::gst::view_mat(mat, RIGHT, 2), sil.get(), seeds, g, p);
@@ -340,12 +345,13 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
   treestereo::gst::depth_stats_to_gst(c.depth.stats, &out.stats);
   out.stats.n_grid = guint(c.matches.size() - c.n_seeds);
   const CanopyResult &cr = c.canopy;
+  st->ground.update(cr.ground);
   GST_DEBUG_OBJECT(self,
-                   "canopy %s: zone %.0f-%.0f mm, ground %s (n %.3f %.3f %.3f, d %.0f mm, %zu "
+                   "canopy %s: zone %.0f-%.0f mm, ground %s%s (n %.3f %.3f %.3f, d %.0f mm, %zu "
                    "inliers), %d segments, x %.0f..%.0f mm, %zu canopy points, %zu coarse, %zu "
                    "seam px, %.1f ms",
                    cr.present ? "present" : "absent", cr.near_mm, cr.far_mm,
-                   cr.ground.found ? "found" : "none", cr.ground.normal[0], cr.ground.normal[1],
+                   cr.ground.found ? "found" : "none", cr.ground.held ? " (held)" : "", cr.ground.normal[0], cr.ground.normal[1],
                    cr.ground.normal[2], cr.ground.d, cr.ground.inliers, cr.n_segments, cr.left_mm,
                    cr.right_mm, cr.n_canopy_points, c.coarse, cr.n_seam_pixels,
                    (g_get_monotonic_time() - t0) / 1000.0);
@@ -467,6 +473,7 @@ static gboolean gst_stereo_depth_set_caps(GstBaseTransform *trans, GstCaps *inca
     return FALSE;
   }
   self->state->info_set = true;
+  self->state->ground.reset(); // a new stream
   return TRUE;
 }
 

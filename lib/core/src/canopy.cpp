@@ -248,14 +248,28 @@ std::vector<cv::Vec2i> split_at_valleys(const std::vector<cv::Vec2i> &runs,
 // The ground plane by RANSAC over the points (deterministic), then least squares on the inliers.
 // Nothing may lie under the ground and the camera stands above it: a candidate plane with more
 // than 2 % of the points well below it, or above the camera (a slice through a canopy), is
-// refused.
+// refused, and so is one away from the prior (CanopyParams::ground_prior). No plane: the prior,
+// held (or none).
 GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
                        const cv::Vec3d &up)
 {
   GroundPlane best;
+  // With a prior, only a plane near it is this frame's ground.
+  const GroundPlane &prior = p.ground_prior;
+  const double cos_prior = std::cos(p.ground_prior_tilt_deg * kDeg);
+  auto near_prior = [&](const cv::Vec3d &nn, double d) {
+    return !prior.found ||
+           (nn.dot(prior.normal) >= cos_prior && std::abs(d - prior.d) <= p.ground_prior_shift_mm);
+  };
+  auto keep_prior = [&]() {
+    GroundPlane held = prior;
+    held.inliers = 0;
+    held.held = prior.found;
+    return held;
+  };
   const std::size_t n = X.size();
   if (n < 30)
-    return best;
+    return keep_prior();
   const double cos_tilt = std::cos(p.ground_max_tilt_deg * kDeg);
   // Inlier distance: the tolerance, or kGroundDepthTolerance of the point's depth where stereo's
   // depth error is larger than that (far grass, small views).
@@ -300,7 +314,7 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
     if (cv::Vec3d(X[i].x, X[i].y, X[i].z).dot(up) < 0)
       low.push_back(i);
   if (low.size() < 3)
-    return best;
+    return keep_prior();
   for (int it = 0; it < kGroundIterations; ++it) {
     const cv::Point3d &a = X[low[next() % low.size()]], &b = X[low[next() % low.size()]],
                       &c = X[low[next() % low.size()]];
@@ -314,7 +328,7 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
     if (nn.dot(up) < cos_tilt)
       continue;
     const double d = -nn.dot(cv::Vec3d(a.x, a.y, a.z));
-    if (d < kMinCameraHeightMm) // the camera stands above its ground
+    if (d < kMinCameraHeightMm || !near_prior(nn, d)) // the camera stands above its ground
       continue;
     std::size_t in = 0, under = 0;
     for (const cv::Point3d &q : X) {
@@ -331,7 +345,7 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
     }
   }
   if (best_inliers < min_inliers)
-    return best;
+    return keep_prior();
   // Least squares on the inliers (the plane through their centroid, normal = the smallest
   // principal axis).
   cv::Mat pts(0, 3, CV_64F);
@@ -343,9 +357,9 @@ GroundPlane fit_ground(const std::vector<cv::Point3d> &X, const CanopyParams &p,
                pca.eigenvectors.at<double>(2, 2));
   if (nn.dot(up) < 0)
     nn = -nn;
-  if (nn.dot(up) < cos_tilt)
-    nn = best_n;
   const cv::Vec3d m(pca.mean.at<double>(0), pca.mean.at<double>(1), pca.mean.at<double>(2));
+  if (nn.dot(up) < cos_tilt || !near_prior(nn, -nn.dot(m)))
+    nn = best_n;
   best.found = true;
   best.normal = nn;
   best.d = -nn.dot(m);
@@ -374,6 +388,9 @@ void validate(const CanopyParams &p)
   require(p.ground_max_tilt_deg > 0 && p.ground_max_tilt_deg <= 60, "ground_max_tilt_deg",
           "above 0, at most 60 degrees");
   require(p.ground_tolerance_mm > 0, "ground_tolerance_mm", "above 0");
+  require(p.ground_prior_tilt_deg > 0 && p.ground_prior_tilt_deg <= 60, "ground_prior_tilt_deg",
+          "above 0, at most 60 degrees");
+  require(p.ground_prior_shift_mm > 0, "ground_prior_shift_mm", "above 0");
   require(p.layer_bin_mm >= 5 && p.layer_bin_mm <= 1000, "layer_bin_mm", "5 to 1000 mm");
   require(p.layer_min_share > 0 && p.layer_min_share <= 1, "layer_min_share", "above 0, at most 1");
   require(p.layer_gap_mm >= p.layer_bin_mm, "layer_gap_mm", "at least layer_bin_mm");
@@ -383,6 +400,17 @@ void validate(const CanopyParams &p)
   require(p.min_crown_mm >= 0 && p.min_crown_mm <= 10000, "min_crown_mm", "0 to 10000 mm");
   require(p.sample_spacing_px >= 0, "sample_spacing_px", ">= 0");
   require(p.seam_half_window >= 0 && p.seam_half_window <= 15, "seam_half_window", "0 to 15 px");
+}
+
+void GroundTracker::update(const GroundPlane &ground)
+{
+  if (ground.found && !ground.held) {
+    prior_ = ground;
+    held_ = 0;
+  } else if (prior_.found && ++held_ > max_held_) {
+    prior_ = GroundPlane();
+    held_ = 0;
+  }
 }
 
 CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoint> &points,

@@ -47,6 +47,38 @@ enum class GroundModel { Off, Fit, Rig };
 const char *ground_model_name(GroundModel model);            // "off", "fit", "rig"
 GroundModel ground_model_from_name(const std::string &name); // throws on an unknown name
 
+// A plane n . X + d = 0 in the rectified-left frame (mm), n of unit length pointing up (-y).
+struct GroundPlane {
+  bool found = false;
+  cv::Vec3d normal{0, -1, 0};
+  double d = 0;
+  std::size_t inliers = 0;
+  // Fit with a prior (CanopyParams::ground_prior): no plane of this frame agreed with the prior,
+  // which is returned (found, held, inliers 0).
+  bool held = false;
+  // Height of a point above the plane (mm, positive above).
+  double height_of(const cv::Point3d &p) const { return normal.dot(cv::Vec3d(p.x, p.y, p.z)) + d; }
+};
+
+// The ground from frame to frame, for CanopyParams::ground_prior: the last plane a frame fitted
+// on its own points. A prior held for more than max_held frames in a row (the rig was tilted or
+// lifted for good, or the prior was wrong) is dropped, and the next frame fits freely.
+class GroundTracker {
+public:
+  explicit GroundTracker(int max_held = 7) : max_held_(max_held) {}
+  // The prior for the next frame (found = false: none).
+  const GroundPlane &prior() const { return prior_; }
+  // The ground the frame ended with (select_canopy's CanopyResult::ground).
+  void update(const GroundPlane &ground);
+  // A new stream, or a break in it (a discontinuity): no prior.
+  void reset() { *this = GroundTracker(max_held_); }
+
+private:
+  int max_held_;
+  int held_ = 0;
+  GroundPlane prior_;
+};
+
 struct CanopyParams {
   CanopyMode mode = CanopyMode::Tree;
   // The spray zone in depth (Z, mm). Both 0: the near row found from the data. Otherwise the
@@ -59,6 +91,13 @@ struct CanopyParams {
   double camera_pitch_deg = 0;  // GroundModel::Rig: positive = looking down
   double ground_max_tilt_deg = 25; // Fit: the plane's normal within this of the camera's y axis
   double ground_tolerance_mm = 40; // Fit: inlier distance
+  // Fit: the ground of the frames before (found = false: none; GroundTracker keeps it). The rig
+  // is rigid, so this frame's ground lies near it: a candidate plane tilted more than
+  // ground_prior_tilt_deg from it, or with the camera more than ground_prior_shift_mm higher or
+  // lower above it, is refused (a slice of canopy, the slope of a crown or of the next row), and
+  // when no plane agrees the prior is kept (GroundPlane::held).
+  GroundPlane ground_prior;
+  double ground_prior_tilt_deg = 6, ground_prior_shift_mm = 150;
   // The near row: histogram bins, a layer must hold this share of the weight, and it ends at
   // the first empty stretch this long (or max_row_depth_mm behind its front).
   double layer_bin_mm = 50, layer_min_share = 0.12, layer_gap_mm = 400;
@@ -91,16 +130,6 @@ enum class PointClass : std::uint8_t {
   Front,       // nearer than the zone
   Ground,      // less than min_height_mm above the ground
   High,        // above max_height_mm
-};
-
-// A plane n . X + d = 0 in the rectified-left frame (mm), n of unit length pointing up (-y).
-struct GroundPlane {
-  bool found = false;
-  cv::Vec3d normal{0, -1, 0};
-  double d = 0;
-  std::size_t inliers = 0;
-  // Height of a point above the plane (mm, positive above).
-  double height_of(const cv::Point3d &p) const { return normal.dot(cv::Vec3d(p.x, p.y, p.z)) + d; }
 };
 
 // One stretch of the near row along x, separated from the next by an empty stretch of at least
