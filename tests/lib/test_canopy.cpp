@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -422,6 +423,92 @@ TEST(Canopy, TouchingCrownsAreCutWhereTheirTopLineDips)
   bad = CanopyParams();
   bad.min_crown_mm = -1;
   EXPECT_THROW(validate(bad), std::runtime_error);
+}
+
+// Points of a plane through the rig's view, as select_canopy takes them: x across, z in depth,
+// y from the plane (y down), each at its left pixel.
+std::vector<PixelPoint> plane_points(const StereoGeometry &g, double x0, double x1, double z0,
+                                     double z1, int n, const std::function<double(double, double)> &y)
+{
+  std::vector<PixelPoint> out;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const double x = x0 + (x1 - x0) * i / (n - 1), z = z0 + (z1 - z0) * j / (n - 1);
+      PixelPoint q;
+      q.p = Point3{float(x), float(y(x, z)), float(z), true};
+      q.px = cv::Point2f(float(g.fx * x / z + g.cx[0]), float(g.fy * q.p.y / z + g.cy));
+      if (q.px.x >= 0 && q.px.y >= 0 && q.px.x < g.view_size.width && q.px.y < g.view_size.height)
+        out.push_back(q);
+    }
+  return out;
+}
+
+TEST(Canopy, TheGroundStaysNearTheFramesBefore)
+{
+  // A slope of leaves (the underside of crowns, a bank of the next row) tilted 15 degrees, and
+  // no grass in view: a plane the fit takes for the ground when nothing says where the ground
+  // was. With the ground of the frames before as the prior (the grass 0.7 m below the camera),
+  // the slope is refused and the prior held.
+  Scene s;
+  const cv::Mat all(s.g.view_size, CV_8U, cv::Scalar(255));
+  const double tilt = std::tan(15 * 3.14159265358979 / 180);
+  const auto slope = plane_points(s.g, -1000, 1000, 1400, 3000, 30,
+                                  [&](double, double z) { return 150 - tilt * (z - 2000); });
+  CanopyParams p;
+  const CanopyResult free_fit = select_canopy(all, slope, s.g, p);
+  ASSERT_TRUE(free_fit.ground.found);
+  EXPECT_FALSE(free_fit.ground.held);
+  EXPECT_LT(free_fit.ground.normal[1], -0.95); // taken, though 15 degrees off level
+  EXPECT_GT(std::abs(free_fit.ground.normal[2]), 0.2);
+
+  GroundPlane grass;
+  grass.found = true;
+  grass.normal = cv::Vec3d(0, -1, 0);
+  grass.d = 700;
+  p.ground_prior = grass;
+  const CanopyResult held = select_canopy(all, slope, s.g, p);
+  ASSERT_TRUE(held.ground.found);
+  EXPECT_TRUE(held.ground.held);
+  EXPECT_EQ(held.ground.inliers, 0u);
+  EXPECT_NEAR(held.ground.d, 700, 1e-9);
+  EXPECT_NEAR(held.ground.normal[1], -1, 1e-9);
+
+  // The grass in view, 20 mm lower than the prior (the rig bounced): this frame's own plane.
+  auto both = slope;
+  const auto lawn = plane_points(s.g, -1500, 1500, 1500, 4000, 16,
+                                 [](double, double) { return 720.0; });
+  both.insert(both.end(), lawn.begin(), lawn.end());
+  const CanopyResult fitted = select_canopy(all, both, s.g, p);
+  ASSERT_TRUE(fitted.ground.found);
+  EXPECT_FALSE(fitted.ground.held);
+  EXPECT_NEAR(fitted.ground.d, 720, 3);
+  EXPECT_NEAR(fitted.ground.normal[1], -1, 1e-3);
+}
+
+TEST(Canopy, GroundTrackerHoldsThePriorForAWhile)
+{
+  GroundTracker t(3);
+  EXPECT_FALSE(t.prior().found);
+  GroundPlane g;
+  g.found = true;
+  g.d = 950;
+  t.update(g);
+  ASSERT_TRUE(t.prior().found);
+  EXPECT_EQ(t.prior().d, 950);
+  GroundPlane held = g;
+  held.held = true;
+  held.d = 0; // a held plane never becomes the prior
+  for (int i = 0; i < 3; ++i) {
+    t.update(i == 1 ? GroundPlane() : held); // held, or none at all
+    ASSERT_TRUE(t.prior().found) << i;
+    EXPECT_EQ(t.prior().d, 950);
+  }
+  t.update(held); // the fourth frame in a row without a plane of its own: the prior goes
+  EXPECT_FALSE(t.prior().found);
+  t.update(g);
+  EXPECT_TRUE(t.prior().found);
+  t.reset();
+  EXPECT_FALSE(t.prior().found);
 }
 
 TEST(Canopy, NothingToDecide)
