@@ -1118,7 +1118,9 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
 
 double depth_support(const cv::Mat &mask, const std::vector<cv::Point2f> &px, double radius_px)
 {
-  CV_Assert(mask.type() == CV_8U);
+  if (mask.type() != CV_8U)
+    throw BadInput("The silhouette mask is not 8-bit: the depth support needs an 8-bit mask.",
+                   "depth_support: mask type " + std::to_string(mask.type()));
   const int total = cv::countNonZero(mask);
   if (total == 0)
     return 0.0;

@@ -450,6 +450,7 @@ TEST(Canopy, ErrorsAreTypedAndNameTheProblem)
   Scene s;
   expect_typed_error<BadInput>(
       [&] { select_canopy(cv::Mat(10, 10, CV_8U), {}, s.g, CanopyParams()); }, "vegetation mask");
+  expect_typed_error<BadInput>([] { depth_support(cv::Mat(10, 10, CV_32F), {}, 3); }, "8-bit");
 }
 
 TEST(Canopy, DepthSupport)
