@@ -93,6 +93,15 @@ Detections detect_pairs(const std::vector<ChessboardPair> &pairs, cv::Size board
   return d;
 }
 
+// The rejected pairs and why, for an error's detail: "a: board not found in left image; ...".
+std::string rejections(const std::vector<RejectedPair> &rejected)
+{
+  std::string out;
+  for (const RejectedPair &r : rejected)
+    out += (out.empty() ? "" : "; ") + r.name + ": " + r.reason;
+  return out;
+}
+
 void check_board(cv::Size board)
 {
   if (board.width < 2 || board.height < 2)
@@ -144,8 +153,7 @@ ChessboardCalibration calibrate_chessboard(const std::vector<ChessboardPair> &pa
                        " board in both views and at least " + std::to_string(kMinPairs) +
                        " are needed; check the board size (inner corners, not squares) or take "
                        "more pairs.",
-                   "calibrate_chessboard: " + std::to_string(d.rejected.size()) +
-                       " pairs rejected");
+                   "rejected: " + rejections(d.rejected));
   const std::vector<std::vector<cv::Point3f>> objects(d.used.size(), board_points(board, square));
 
   ChessboardCalibration out;
@@ -186,8 +194,7 @@ RectificationCheck check_rectification(const StereoCalibration &calib,
                        std::to_string(board.height) +
                        " board in both views: check the board size (inner corners, not squares) "
                        "or take pairs that show it.",
-                   "check_rectification: " + std::to_string(pairs.size()) + " pairs, " +
-                       std::to_string(d.rejected.size()) + " rejected");
+                   "rejected: " + rejections(d.rejected));
   // Same stereoRectify as the pipeline, but on points: exact, and no map quantisation.
   cv::Mat R1, R2, P1, P2, Q;
   const StereoCalibration c = scale_calibration(calib, d.size);
