@@ -398,10 +398,7 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
   if (!g.valid())
     throw BadInput("The stereo geometry is not valid: the canopy needs a calibrated, rectified "
                    "pair (fx and baseline above 0, a view size).",
-                   "select_canopy: fx=" + std::to_string(g.fx) + " baseline_mm=" +
-                       std::to_string(g.baseline_mm) + " view " +
-                       std::to_string(g.view_size.width) + "x" +
-                       std::to_string(g.view_size.height));
+                   "select_canopy: " + describe(g));
   if (vegetation.type() != CV_8U || vegetation.size() != g.view_size)
     throw BadInput("The vegetation mask does not fit the view: give an 8-bit mask of the view's "
                    "size.",

@@ -28,13 +28,7 @@ void check_input(const cv::Mat &left, const cv::Mat &right, const cv::Mat &mask,
                        " type " + std::to_string(left.type()) + ", right " +
                        std::to_string(right.cols) + "x" + std::to_string(right.rows) + " type " +
                        std::to_string(right.type()));
-  if (mask.type() != CV_8UC1 || mask.size() != left.size())
-    throw BadInput("The left mask does not fit the views: give a one-channel 8-bit mask of the "
-                   "views' size.",
-                   "densify: mask type " + std::to_string(mask.type()) + ", " +
-                       std::to_string(mask.cols) + "x" + std::to_string(mask.rows) +
-                       " for views of " + std::to_string(left.cols) + "x" +
-                       std::to_string(left.rows));
+  check_mask(mask, left.size(), "densify (the left mask)");
   if (p.step < 0 || p.target_points < 1 || p.half_window < 1 || !(p.min_zncc <= 1.0) ||
       !(p.min_margin >= 0.0) || !(p.seed_percentile >= 0.0) || !(p.seed_percentile < 50.0) ||
       !(p.search_margin_px >= 0.0) || p.min_seeds < 1 || !(p.edge_band >= 0.0) ||

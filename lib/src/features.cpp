@@ -75,18 +75,23 @@ cv::Mat to_gray8(const cv::Mat &view, const ChannelOrder &order)
   return out;
 }
 
+void check_mask(const cv::Mat &mask, const cv::Size &view_size, const char *where)
+{
+  if (mask.type() != CV_8UC1 || mask.size() != view_size)
+    throw BadInput("The mask does not fit the view: give a one-channel 8-bit mask of the view's "
+                   "size.",
+                   std::string(where) + ": mask type " + std::to_string(mask.type()) + ", " +
+                       std::to_string(mask.cols) + "x" + std::to_string(mask.rows) +
+                       " for a view of " + std::to_string(view_size.width) + "x" +
+                       std::to_string(view_size.height));
+}
+
 cv::Rect detection_region(const cv::Size &view_size, const cv::Mat &mask, int margin)
 {
   const cv::Rect whole(cv::Point(0, 0), view_size);
   if (mask.empty())
     return whole;
-  if (mask.type() != CV_8UC1 || mask.size() != view_size)
-    throw BadInput("The detection mask does not fit the view: give a one-channel 8-bit mask of "
-                   "the view's size.",
-                   "detection_region: mask type " + std::to_string(mask.type()) + ", " +
-                       std::to_string(mask.cols) + "x" + std::to_string(mask.rows) +
-                       " for a view of " + std::to_string(view_size.width) + "x" +
-                       std::to_string(view_size.height));
+  check_mask(mask, view_size, "detection_region");
   cv::Rect box = cv::boundingRect(mask); // bounding box of the non-zero pixels
   if (box.area() == 0)
     return cv::Rect();
@@ -153,13 +158,8 @@ LocatedFeatures FeatureDetector::locate(const cv::Mat &view, const cv::Mat &mask
   const bool masked = params_.use_mask && !mask.empty();
   f.region = (masked && params_.roi) ? detection_region(gray.size(), mask, params_.roi_margin)
                                      : cv::Rect(cv::Point(0, 0), gray.size());
-  if (masked && (mask.type() != CV_8UC1 || mask.size() != gray.size()))
-    throw BadInput("The detection mask does not fit the view: give a one-channel 8-bit mask of "
-                   "the view's size.",
-                   "FeatureDetector::locate: mask type " + std::to_string(mask.type()) + ", " +
-                       std::to_string(mask.cols) + "x" + std::to_string(mask.rows) +
-                       " for a view of " + std::to_string(gray.cols) + "x" +
-                       std::to_string(gray.rows));
+  if (masked)
+    check_mask(mask, gray.size(), "FeatureDetector::locate");
 
   // Too small for SIFT's border and descriptor support: nothing to find.
   if (f.region.width * params_.scale >= 16 && f.region.height * params_.scale >= 16) {

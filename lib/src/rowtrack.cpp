@@ -135,10 +135,7 @@ void view_slopes(const StereoGeometry &g, double &left_slope, double &right_slop
   if (!g.valid())
     throw BadInput("The stereo geometry is not valid: the view's edges need a calibrated, "
                    "rectified pair (fx and baseline above 0, a view size).",
-                   "view_slopes: fx=" + std::to_string(g.fx) + " baseline_mm=" +
-                       std::to_string(g.baseline_mm) + " view " +
-                       std::to_string(g.view_size.width) + "x" +
-                       std::to_string(g.view_size.height));
+                   "view_slopes: " + describe(g));
   right_slope = (g.view_size.width - 0.5 - g.cx[LEFT]) / g.fx;
   const double own = (-0.5 - g.cx[LEFT]) / g.fx, other = (-0.5 - g.cx[RIGHT]) / g.fx;
   if (other * 1000.0 + g.baseline_mm >= own * 1000.0) {

@@ -644,10 +644,7 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
   if (!g.valid())
     throw BadInput("The stereo geometry is not valid: the rig's motion needs a calibrated, "
                    "rectified pair (fx and baseline above 0, a view size).",
-                   "estimate_motion: fx=" + std::to_string(g.fx) + " baseline_mm=" +
-                       std::to_string(g.baseline_mm) + " view " +
-                       std::to_string(g.view_size.width) + "x" +
-                       std::to_string(g.view_size.height));
+                   "estimate_motion: " + describe(g));
   const cv::Mat *views[4] = {&prev_left, &prev_right, &left, &right};
   for (const cv::Mat *v : views) {
     if (v->size() != g.view_size)

@@ -345,7 +345,7 @@ TEST(Densify, ErrorsAreTypedAndNameTheProblem)
   const std::vector<StereoMatch> seeds = seeds_at({s.df}, 20);
   expect_typed_error<BadInput>(
       [&] { densify_matches(s.left, s.right, s.mask(cv::Rect(0, 0, 100, 100)), seeds, {}); },
-      "left mask");
+      "mask does not fit");
   DensifyParams p;
   p.min_seeds = 0;
   expect_typed_error<BadSettings>([&] { densify_matches(s.left, s.right, s.mask, seeds, p); },
