@@ -13,11 +13,10 @@ namespace treestereo {
 cv::Mat to_gray8(const cv::Mat &view)
 {
   if (view.empty())
-    throw BadInput("The view is empty: feature detection needs an image.",
+    throw BadInput("The view is empty: give an image.",
                    "to_gray8: empty cv::Mat");
   if (view.depth() != CV_8U)
-    throw BadInput("The view is not 8-bit: feature detection needs 8-bit grey or colour "
-                   "frames.",
+    throw BadInput("The view is not 8-bit: give 8-bit grey or colour frames.",
                    "to_gray8: depth " + std::to_string(view.depth()));
   switch (view.channels()) {
   case 1:
@@ -33,8 +32,8 @@ cv::Mat to_gray8(const cv::Mat &view)
     return g;
   }
   default:
-    throw BadInput("The view has an unusable number of channels: feature detection needs grey, "
-                   "BGR or BGRA (1, 3 or 4 channels).",
+    throw BadInput("The view has an unusable number of channels: give grey, BGR or BGRA (1, 3 "
+                   "or 4 channels).",
                    "to_gray8: " + std::to_string(view.channels()) + " channels");
   }
 }

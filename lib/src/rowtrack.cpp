@@ -28,7 +28,7 @@ void require(bool ok, const char *field, const char *range)
 void check_frame(const TrackFrame &f)
 {
   if (!std::isfinite(f.position_mm))
-    throw BadInput("The rig's position is not a number: the tree tracker needs a finite position "
+    throw BadInput("The rig's position is not finite: the tree tracker needs a finite position "
                    "along the row in each frame.",
                    "TrackFrame::position_mm = " + std::to_string(f.position_mm));
   if (!std::isfinite(f.left_slope) || !std::isfinite(f.right_slope) ||

@@ -276,7 +276,7 @@ std::vector<SectionCommand> SprayPlanner::update(std::int64_t running_ns, double
                                                  const std::vector<SpraySlice> &slices)
 {
   if (!std::isfinite(position_m))
-    throw BadInput("The rig's position is not a number: the spray planner needs a finite "
+    throw BadInput("The rig's position is not finite: the spray planner needs a finite "
                    "position along the row.",
                    "SprayPlanner::update: position_m = " + std::to_string(position_m));
   for (const SpraySlice &sl : slices)
