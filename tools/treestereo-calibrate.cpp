@@ -2,6 +2,7 @@
 // existing calibration's rectification on such pairs.
 #include "treestereo/calibration_file.hpp"
 #include "treestereo/chessboard.hpp"
+#include "treestereo/errors.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -180,7 +181,13 @@ int main(int argc, char **argv)
     const std::vector<treestereo::ChessboardPair> pairs = load_pairs(files);
     return o.check.empty() ? run_calibrate(o, pairs) : run_check(o, pairs);
   } catch (const std::exception &e) {
-    std::fprintf(stderr, "treestereo-calibrate: error: %s\n", e.what());
+    // a typed error's detail (the values at odds) after its sentence
+    const auto *typed = dynamic_cast<const treestereo::Error *>(&e);
+    if (typed && !typed->detail().empty())
+      std::fprintf(stderr, "treestereo-calibrate: error: %s (%s)\n", e.what(),
+                   typed->detail().c_str());
+    else
+      std::fprintf(stderr, "treestereo-calibrate: error: %s\n", e.what());
     return 1;
   }
 }

@@ -390,20 +390,62 @@ GST_START_TEST(test_bad_section_heights_is_a_named_error)
 }
 GST_END_TEST;
 
+/* Pushes @in, which spraycontrol cannot use: the buffer passes, one WARNING with @message and
+ * @debug_part; a second such buffer passes without another. */
+static void expect_one_warning(GstBuffer *in, const char *message, const char *debug_part)
+{
+  Harness r = harness("");
+  GstBuffer *again = gst_buffer_copy(in);
+  GST_BUFFER_PTS(again) = GST_BUFFER_PTS(in) == GST_CLOCK_TIME_NONE ? GST_CLOCK_TIME_NONE
+                                                                      : GST_BUFFER_PTS(in) + kFrame;
+  fail_unless_equals_int(gst_harness_push(r.h, in), GST_FLOW_OK);
+  gst_buffer_unref(gst_harness_pull(r.h));
+  expect_bus_error(r.bus, GST_MESSAGE_WARNING, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED, message,
+                   debug_part);
+  fail_unless_equals_int(gst_harness_push(r.h, again), GST_FLOW_OK);
+  gst_buffer_unref(gst_harness_pull(r.h));
+  fail_unless(gst_bus_pop_filtered(r.bus, GST_MESSAGE_WARNING) == nullptr);
+  harness_free(r);
+}
+
 /* A buffer without treemetrics' metrics meta: one warning naming it, the buffer passes. */
 GST_START_TEST(test_missing_metrics_meta_is_a_warning)
 {
-  Harness r = harness("");
   GstBuffer *in = gst_buffer_new_allocate(nullptr, kW * kH, nullptr);
   GST_BUFFER_PTS(in) = 0;
-  fail_unless_equals_int(gst_harness_push(r.h, in), GST_FLOW_OK);
-  gst_buffer_unref(gst_harness_pull(r.h));
-  expect_bus_error(r.bus, GST_MESSAGE_WARNING, GST_STREAM_ERROR, GST_STREAM_ERROR_FAILED,
-                   "No rig position on the buffer: spraycontrol needs the metrics meta of "
-                   "treemetrics upstream. Until it comes the sections keep their state, then "
-                   "take the fallback after hold-time.",
-                   "has no GstTreeStereoMetricsMeta");
-  harness_free(r);
+  expect_one_warning(in,
+                     "No rig position on the buffer: spraycontrol needs the metrics meta of "
+                     "treemetrics upstream. Until it comes the sections keep their state, then "
+                     "take the fallback after hold-time.",
+                     "has no GstTreeStereoMetricsMeta");
+}
+GST_END_TEST;
+
+/* The rig's position but no stereo geometry (no stereorectify upstream): a warning naming it. */
+GST_START_TEST(test_missing_geometry_meta_is_a_warning)
+{
+  GstBuffer *in = gst_buffer_new_allocate(nullptr, kW * kH, nullptr);
+  GST_BUFFER_PTS(in) = 0;
+  GstTreeStereoMetrics m{};
+  m.position_m = kP0;
+  gst_buffer_add_tree_stereo_metrics_meta(in, &m, nullptr);
+  expect_one_warning(in,
+                     "No stereo geometry on the buffer: spraycontrol needs the geometry meta of "
+                     "stereorectify upstream. Until it comes the sections keep their state, then "
+                     "take the fallback after hold-time.",
+                     "has no GstTreeStereoGeometryMeta");
+}
+GST_END_TEST;
+
+/* Every meta but no timestamp: no running time to time the valves by, a warning saying so. */
+GST_START_TEST(test_missing_timestamp_is_a_warning)
+{
+  GstBuffer *in = frame(0, kP0, {{0.0, 1.0}});
+  GST_BUFFER_PTS(in) = GST_CLOCK_TIME_NONE;
+  expect_one_warning(in,
+                     "No timestamp on the buffer: spraycontrol needs the running time of each "
+                     "frame; give the buffers timestamps upstream.",
+                     "has no valid running time");
 }
 GST_END_TEST;
 
@@ -486,6 +528,8 @@ static Suite *spraycontrol_suite(void)
   tcase_add_test(tc, test_fail_safe_on_a_gap_in_the_running_times);
   tcase_add_test(tc, test_bad_section_heights_is_a_named_error);
   tcase_add_test(tc, test_missing_metrics_meta_is_a_warning);
+  tcase_add_test(tc, test_missing_geometry_meta_is_a_warning);
+  tcase_add_test(tc, test_missing_timestamp_is_a_warning);
   tcase_add_test(tc, test_section_message_round_trip);
   tcase_add_test(tc, test_timeline_picture_at_eos);
   return s;

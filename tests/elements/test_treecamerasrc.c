@@ -5,7 +5,9 @@
  *     growing attempts, no ERROR; the latency query answers live meanwhile; NULL comes promptly
  *     (at most one attempt in progress to wait for);
  *   - EOS sent while it is missing reaches the bus;
- *   - reconnect-interval=0: the camera's error ends the pipeline, as a bare aravissrc's. */
+ *   - reconnect-interval=0: the camera's error ends the pipeline, as a bare aravissrc's;
+ *   - a camera name no camera has, reconnect-interval=0: an ERROR naming it, whatever cameras
+ *     and network interfaces the machine has. */
 #include <gst/check/gstcheck.h>
 #include "expect_error.h"
 
@@ -242,6 +244,26 @@ GST_START_TEST (test_no_reconnect)
 
 GST_END_TEST;
 
+/* A name no camera has: aravis's discovery finds no such device (with or without interfaces to
+ * search) and, with no reconnecting, the error reaches the bus naming the camera. */
+GST_START_TEST (test_unknown_camera_name)
+{
+  if (!have_aravis ())
+    return;
+  GstElement *p = gst_parse_launch ("treecamerasrc camera=no-such-camera-xyz "
+      "reconnect-interval=0 ! fakesink", NULL);
+  fail_unless (p != NULL);
+  gst_element_set_state (p, GST_STATE_PLAYING);
+  GstBus *bus = gst_element_get_bus (p);
+  expect_bus_error_naming (bus, GST_MESSAGE_ERROR, 20 * GST_SECOND, GST_RESOURCE_ERROR,
+      GST_RESOURCE_ERROR_NOT_FOUND, "\"no-such-camera-xyz\"", NULL);
+  gst_object_unref (bus);
+  fail_unless (to_null (p) < 4.0);
+  gst_object_unref (p);
+}
+
+GST_END_TEST;
+
 static Suite *
 treecamerasrc_suite (void)
 {
@@ -253,6 +275,7 @@ treecamerasrc_suite (void)
   tcase_add_test (tc, test_missing_camera_retries);
   tcase_add_test (tc, test_eos_while_missing);
   tcase_add_test (tc, test_no_reconnect);
+  tcase_add_test (tc, test_unknown_camera_name);
   return s;
 }
 

@@ -1,7 +1,9 @@
 // select_canopy on constructed scenes ray-cast in both views of a rectified rig: spheres of
 // leaves (canopies), a green wall behind them, a green ground plane under them. Every surface is
 // "vegetation" to colour; the truth of which pixels are the canopy in front is exact.
+#include "treestereo/errors.hpp"
 #include "treestereo/canopy.hpp"
+#include "typed_error.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -419,10 +421,10 @@ TEST(Canopy, TouchingCrownsAreCutWhereTheirTopLineDips)
 
   CanopyParams bad;
   bad.valley_share = 1;
-  EXPECT_THROW(validate(bad), std::runtime_error);
+  EXPECT_THROW(validate(bad), BadSettings);
   bad = CanopyParams();
   bad.min_crown_mm = -1;
-  EXPECT_THROW(validate(bad), std::runtime_error);
+  EXPECT_THROW(validate(bad), BadSettings);
 }
 
 // Points of a plane through the rig's view, as select_canopy takes them: x across, z in depth,
@@ -522,8 +524,20 @@ TEST(Canopy, NothingToDecide)
   CanopyParams bad;
   bad.far_mm = 100;
   bad.near_mm = 200;
-  EXPECT_THROW(select_canopy(veg, {}, g, bad), std::runtime_error);
-  EXPECT_THROW(select_canopy(cv::Mat(10, 10, CV_8U), {}, g, CanopyParams()), std::runtime_error);
+  EXPECT_THROW(select_canopy(veg, {}, g, bad), BadSettings);
+  EXPECT_THROW(select_canopy(cv::Mat(10, 10, CV_8U), {}, g, CanopyParams()), BadInput);
+}
+
+TEST(Canopy, ErrorsAreTypedAndNameTheProblem)
+{
+  expect_typed_error<BadSettings>([] { canopy_mode_from_name("hedge"); }, "'hedge'");
+  CanopyParams bad;
+  bad.min_crown_mm = -1;
+  expect_typed_error<BadSettings>([&] { validate(bad); }, "min_crown_mm");
+  Scene s;
+  expect_typed_error<BadInput>(
+      [&] { select_canopy(cv::Mat(10, 10, CV_8U), {}, s.g, CanopyParams()); }, "vegetation mask");
+  expect_typed_error<BadInput>([] { depth_support(cv::Mat(10, 10, CV_32F), {}, 3); }, "8-bit");
 }
 
 TEST(Canopy, DepthSupport)

@@ -1,5 +1,7 @@
 #include "treestereo/data_dir.hpp"
+#include "treestereo/errors.hpp"
 #include "treestereo/chessboard.hpp"
+#include "typed_error.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
@@ -69,14 +71,30 @@ TEST(Chessboard, RejectsPairsAndExplainsWhy)
   try {
     calibrate_chessboard(pairs, inner, 25.0);
     ADD_FAILURE() << "calibrated from no usable pair";
-  } catch (const std::runtime_error &e) {
+  } catch (const BadInput &e) {
     EXPECT_NE(std::string(e.what()).find("only 0 of 4 pairs"), std::string::npos) << e.what();
   }
   // The check reports the same reasons before giving up.
   StereoCalibration dummy;
-  EXPECT_THROW(check_rectification(dummy, pairs, inner), std::runtime_error);
-  EXPECT_THROW(calibrate_chessboard(pairs, inner, 0.0), std::invalid_argument);
-  EXPECT_THROW(calibrate_chessboard(pairs, {1, 5}, 25.0), std::invalid_argument);
+  EXPECT_THROW(check_rectification(dummy, pairs, inner), BadInput);
+  EXPECT_THROW(calibrate_chessboard(pairs, inner, 0.0), BadSettings);
+  EXPECT_THROW(calibrate_chessboard(pairs, {1, 5}, 25.0), BadSettings);
+}
+
+TEST(Chessboard, ErrorsAreTypedAndNameTheProblem)
+{
+  std::vector<cv::Point2f> corners;
+  expect_typed_error<BadInput>(
+      [&] { find_chessboard(cv::Mat(40, 40, CV_32F), cv::Size(7, 5), corners); }, "8-bit");
+  expect_typed_error<BadSettings>(
+      [&] { find_chessboard(cv::Mat(40, 40, CV_8U), cv::Size(1, 5), corners); }, "board");
+  try {
+    read_image_list("/nonexistent-treestereo-dir/list.xml");
+    ADD_FAILURE() << "a missing list was read";
+  } catch (const FileError &e) {
+    EXPECT_EQ(e.access(), FileAccess::Read);
+    EXPECT_EQ(e.path(), "/nonexistent-treestereo-dir/list.xml");
+  }
 }
 
 TEST(Chessboard, ReadsOpenCvImageList)
@@ -88,7 +106,7 @@ TEST(Chessboard, ReadsOpenCvImageList)
   ASSERT_EQ(files.size(), 26u);
   EXPECT_EQ(files[0], data_dir() + "/opencv-samples/left01.jpg");
   EXPECT_EQ(files[1], data_dir() + "/opencv-samples/right01.jpg");
-  EXPECT_THROW(read_image_list(data_dir() + "/opencv-samples/nothere.xml"), std::runtime_error);
+  EXPECT_THROW(read_image_list(data_dir() + "/opencv-samples/nothere.xml"), FileError);
 }
 
 TEST(Chessboard, CalibratesOpenCvSamplePairs)

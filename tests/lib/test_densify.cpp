@@ -1,9 +1,11 @@
 // densify_matches on constructed pairs whose disparity is known at every pixel: a front layer
 // with round holes through which a back layer is seen (each layer a smooth random texture shifted
 // by its own disparity in the right view, occlusion exact), a flat patch, and bad input.
+#include "treestereo/errors.hpp"
 #include "treestereo/densify.hpp"
 #include "treestereo/features.hpp"
 #include "treestereo/stats.hpp"
+#include "typed_error.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -271,11 +273,11 @@ TEST(Densify, EdgeBandsSampleTheExtremesFiner)
 
   p.edge_band = 0.6;
   EXPECT_THROW(densify_matches(s.left, s.right, s.mask, seeds_at({s.df}, 20), p),
-               std::runtime_error);
+               BadSettings);
   p.edge_band = 0.1;
   p.edge_step = -1;
   EXPECT_THROW(densify_matches(s.left, s.right, s.mask, seeds_at({s.df}, 20), p),
-               std::runtime_error);
+               BadSettings);
 }
 
 TEST(Densify, ColourViewsAsTheirGreyAndFlatPatchesAreSkipped)
@@ -324,17 +326,30 @@ TEST(Densify, TooFewSeedsOrBadInput)
                   .empty());
   EXPECT_EQ(st.grid, 0u);
   EXPECT_THROW(densify_matches(s.left, s.right(cv::Rect(0, 0, 100, 100)), s.mask, seeds, p),
-               std::runtime_error);
+               BadInput);
   EXPECT_THROW(densify_matches(s.left, s.right, s.mask(cv::Rect(0, 0, 100, 100)), seeds, p),
-               std::runtime_error);
+               BadInput);
   cv::Mat rc;
   cv::cvtColor(s.right, rc, cv::COLOR_GRAY2BGR);
-  EXPECT_THROW(densify_matches(s.left, rc, s.mask, seeds, p), std::runtime_error);
+  EXPECT_THROW(densify_matches(s.left, rc, s.mask, seeds, p), BadInput);
   p.step = -1;
-  EXPECT_THROW(densify_matches(s.left, s.right, s.mask, seeds, p), std::runtime_error);
+  EXPECT_THROW(densify_matches(s.left, s.right, s.mask, seeds, p), BadSettings);
   p.step = 0;
   p.half_window = 0;
-  EXPECT_THROW(densify_matches(s.left, s.right, s.mask, seeds, p), std::runtime_error);
+  EXPECT_THROW(densify_matches(s.left, s.right, s.mask, seeds, p), BadSettings);
+}
+
+TEST(Densify, ErrorsAreTypedAndNameTheProblem)
+{
+  const TwoLayers s = two_layers();
+  const std::vector<StereoMatch> seeds = seeds_at({s.df}, 20);
+  expect_typed_error<BadInput>(
+      [&] { densify_matches(s.left, s.right, s.mask(cv::Rect(0, 0, 100, 100)), seeds, {}); },
+      "mask does not fit");
+  DensifyParams p;
+  p.min_seeds = 0;
+  expect_typed_error<BadSettings>([&] { densify_matches(s.left, s.right, s.mask, seeds, p); },
+                                  "min seeds");
 }
 
 TEST(Densify, GreyConversionFollowsTheChannelOrder)
@@ -343,5 +358,5 @@ TEST(Densify, GreyConversionFollowsTheChannelOrder)
   const cv::Mat px(1, 1, CV_8UC4, cv::Scalar(7, 200, 100, 50));
   const cv::Mat g = to_gray8(px, ChannelOrder{1, 2, 3, 4});
   EXPECT_EQ(int(g.at<uchar>(0, 0)), int(std::lround(0.299 * 200 + 0.587 * 100 + 0.114 * 50)));
-  EXPECT_THROW(to_gray8(px, ChannelOrder{2, 1, 0, 3}), std::runtime_error);
+  EXPECT_THROW(to_gray8(px, ChannelOrder{2, 1, 0, 3}), BadInput);
 }

@@ -1,9 +1,11 @@
 #include "treestereo/data_dir.hpp"
+#include "treestereo/errors.hpp"
 #include "treestereo/features.hpp"
 #include "treestereo/match.hpp"
 #include "treestereo/middlebury.hpp"
 #include "treestereo/presets.hpp"
 #include "treestereo/stats.hpp"
+#include "typed_error.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -290,8 +292,8 @@ TEST(Features, MaskAndRegionLimitDetection)
     EXPECT_EQ(detect_features(img, cv::Mat::zeros(img.size(), CV_8U), p).size(), 0u);
   }
   DetectParams p;
-  EXPECT_THROW(detect_features(img, cv::Mat::zeros(10, 10, CV_8U), p), std::runtime_error);
-  EXPECT_THROW(detect_features(cv::Mat(10, 10, CV_32F), cv::Mat(), p), std::runtime_error);
+  EXPECT_THROW(detect_features(img, cv::Mat::zeros(10, 10, CV_8U), p), BadInput);
+  EXPECT_THROW(detect_features(cv::Mat(10, 10, CV_32F), cv::Mat(), p), BadInput);
 }
 
 // mask_inset keeps keypoints off the canopy's edge by that many px of the detection image, not
@@ -344,7 +346,7 @@ TEST(Features, MaskInsetKeepsKeypointsOffTheCanopysEdge)
   }
   DetectParams bad;
   bad.mask_inset = -1;
-  EXPECT_THROW(FeatureDetector{bad}, std::runtime_error);
+  EXPECT_THROW(FeatureDetector{bad}, BadSettings);
 }
 
 // The upright engine in two steps: describe() computes the flagged keypoints' descriptors, the
@@ -371,7 +373,7 @@ TEST(Features, UprightDescribesOnlyTheKeypointsItIsAskedFor)
     else
       EXPECT_EQ(cv::countNonZero(some.descriptors.row(i)), 0);
   }
-  EXPECT_THROW(det.describe(det.locate(img), std::vector<char>(3, 1)), std::runtime_error);
+  EXPECT_THROW(det.describe(det.locate(img), std::vector<char>(3, 1)), BadInput);
 }
 
 // StereoMatcher with the upright engine describes only keypoints that have a candidate in the
@@ -533,7 +535,7 @@ TEST(Refine, TwoLayerTestRejectsBackgroundPixelGivenTheForegroundDisparity)
   }
 
   on.layer_search = 0;
-  EXPECT_THROW(refine_matches(s.left, s.right, m, on), std::runtime_error);
+  EXPECT_THROW(refine_matches(s.left, s.right, m, on), BadSettings);
 }
 
 // Relocation: a background pixel beside the band, matched at the band's disparity (its 7x7 patch
@@ -724,7 +726,7 @@ TEST(Refine, RejectsInvalidFilterParameters)
   const auto bad = [&](auto set) {
     RefineParams p;
     set(p);
-    EXPECT_THROW(refine_matches(img, img, m, p), std::runtime_error);
+    EXPECT_THROW(refine_matches(img, img, m, p), BadSettings);
   };
   bad([](RefineParams &p) { p.layer_centre_tolerance = std::nan(""); });
   bad([](RefineParams &p) { p.layer_min_zncc = 1.5; });
@@ -733,6 +735,27 @@ TEST(Refine, RejectsInvalidFilterParameters)
   bad([](RefineParams &p) { p.min_zncc_drop = std::nan(""); });
   bad([](RefineParams &p) { p.relocate = -1; });
   bad([](RefineParams &p) { p.relocate = 4; });
+}
+
+TEST(FeaturesMatchRefine, ErrorsAreTypedAndNameTheProblem)
+{
+  // features
+  expect_typed_error<BadInput>(
+      [] { detect_features(cv::Mat(10, 10, CV_32F), cv::Mat(), DetectParams()); }, "8-bit");
+  DetectParams detect;
+  detect.scale = 2;
+  expect_typed_error<BadSettings>([&] { FeatureDetector d{detect}; }, "scale");
+  // match
+  expect_typed_error<BadSettings>([] { parse_match_method("hamming"); }, "'hamming'");
+  expect_typed_error<BadInput>([] { disparity_range_for_depth(StereoGeometry(), 1000, 2000); },
+                               "baseline");
+  // refine
+  const cv::Mat a = texture(cv::Size(64, 64), 81), b = texture(cv::Size(32, 64), 82);
+  std::vector<StereoMatch> m;
+  expect_typed_error<BadInput>([&] { refine_matches(a, b, m, RefineParams()); }, "differ in size");
+  RefineParams refine;
+  refine.relocate = 4;
+  expect_typed_error<BadSettings>([&] { refine_matches(a, a, m, refine); }, "relocate");
 }
 
 // The refinement windows follow the detection scale below 0.5 (a 2592 px wide view detected at

@@ -2,8 +2,10 @@
 // at 0.5 and 2 m/s at 7 frames/s, each frame's segments as the view cuts them and the tree in
 // front's measurements. Frames where the tree is clipped carry wrong values on purpose: none of
 // them may reach a record.
+#include "treestereo/errors.hpp"
 #include "treestereo/rowtrack.hpp"
 #include "treestereo/record_json.hpp"
+#include "typed_error.hpp"
 
 #include <gtest/gtest.h>
 
@@ -649,7 +651,7 @@ TEST(TreeTracker, ViewEdgesOfTheStereoPair)
   EXPECT_NEAR(l, (-0.5 - 648) / 1100, 1e-12);
   EXPECT_EQ(off, 0);
   g.baseline_mm = 0;
-  EXPECT_THROW(view_slopes(g, l, r, off), std::runtime_error);
+  EXPECT_THROW(view_slopes(g, l, r, off), BadInput);
 }
 
 TEST(TreeTracker, JsonLineHasTheDesignNames)
@@ -675,22 +677,36 @@ TEST(TreeTracker, RejectsBadInput)
 {
   TrackerParams p;
   p.grace_frames = -1;
-  EXPECT_THROW({ TreeTracker t(p); }, std::runtime_error);
+  EXPECT_THROW({ TreeTracker t(p); }, BadSettings);
   p = TrackerParams();
   p.forward = 0;
   try {
     TreeTracker t(p);
     FAIL() << "no error";
-  } catch (const std::runtime_error &e) {
+  } catch (const BadSettings &e) {
     EXPECT_NE(std::string(e.what()).find("forward"), std::string::npos);
   }
   TreeTracker t;
   TrackFrame f;
   f.left_slope = 0.5;
   f.right_slope = -0.5;
-  EXPECT_THROW(t.update(f), std::runtime_error);
+  EXPECT_THROW(t.update(f), BadInput);
   f.left_slope = kLeftSlope;
   f.right_slope = kRightSlope;
   f.measured_segment = 0; // no segments
-  EXPECT_THROW(t.update(f), std::runtime_error);
+  EXPECT_THROW(t.update(f), BadInput);
+}
+
+TEST(TreeTracker, ErrorsAreTypedAndNameTheProblem)
+{
+  TrackerParams p;
+  p.forward = 0;
+  expect_typed_error<BadSettings>([&] { TreeTracker t(p); }, "forward");
+  TreeTracker t;
+  TrackFrame f;
+  f.position_mm = std::nan("");
+  expect_typed_error<BadInput>([&] { t.update(f); }, "rig's position");
+  double l = 0, r = 0, off = 0;
+  expect_typed_error<BadInput>([&] { view_slopes(StereoGeometry(), l, r, off); },
+                               "stereo geometry");
 }

@@ -1,6 +1,8 @@
 // The spray planner on constructed maps: timing, min-gap / min-canopy, speed changes, the
 // fail-safe, rates and the section heights.
+#include "treestereo/errors.hpp"
 #include "treestereo/spray.hpp"
+#include "typed_error.hpp"
 
 #include <gtest/gtest.h>
 
@@ -302,7 +304,7 @@ TEST(Spray, SectionHeights)
     try {
       parse_section_heights(bad);
       ADD_FAILURE() << bad << " accepted";
-    } catch (const std::runtime_error &e) {
+    } catch (const BadSettings &e) {
       EXPECT_NE(std::string(e.what()).find(std::string("\"") + bad + "\""), std::string::npos)
           << e.what();
     }
@@ -368,11 +370,21 @@ TEST(Spray, ParamsValidated)
 {
   SprayParams p;
   p.n_sections = 0;
-  EXPECT_THROW(SprayPlanner{p}, std::runtime_error);
+  EXPECT_THROW(SprayPlanner{p}, BadSettings);
   p = SprayParams();
   p.hold_time_ns = 0;
-  EXPECT_THROW(SprayPlanner{p}, std::runtime_error);
+  EXPECT_THROW(SprayPlanner{p}, BadSettings);
   p = SprayParams();
   p.nozzle_offset_m = -1;
-  EXPECT_THROW(SprayPlanner{p}, std::runtime_error);
+  EXPECT_THROW(SprayPlanner{p}, BadSettings);
+}
+
+TEST(Spray, ErrorsAreTypedAndNameTheProblem)
+{
+  SprayParams p;
+  p.rate_step = 0;
+  expect_typed_error<BadSettings>([&] { SprayPlanner planner{p}; }, "rate_step");
+  expect_typed_error<BadSettings>([] { parse_section_heights("0.7:0.4"); }, "lo below hi");
+  SprayPlanner planner{SprayParams()};
+  expect_typed_error<BadInput>([&] { planner.update(0, std::nan(""), {}); }, "rig's position");
 }

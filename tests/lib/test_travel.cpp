@@ -1,9 +1,11 @@
 // The rig's motion between frames: rigid_align on constructed point sets with a known motion, and
 // estimate_motion on consecutive frames of the synthetic orchard, whose travel is known exactly.
+#include "treestereo/errors.hpp"
 #include "treestereo/travel.hpp"
 
 #include "treestereo/rectify.hpp"
 #include "treestereo/scene.hpp"
+#include "typed_error.hpp"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/utility.hpp>
@@ -185,22 +187,31 @@ TEST(RigidAlign, DegenerateInputIsNotFoundAndBadInputThrows)
   }
   const PointSets s = make_sets(10, R, t, 0.0, 0.0, 1);
   std::vector<cv::Point3d> shorter(s.to.begin(), s.to.end() - 1);
-  EXPECT_THROW(rigid_align(s.from, shorter), std::runtime_error);
+  EXPECT_THROW(rigid_align(s.from, shorter), BadInput);
   EXPECT_THROW(rigid_align(s.from, s.to, RigidParams(), std::vector<double>(3, 1.0)),
-               std::runtime_error);
+               BadInput);
   EXPECT_THROW(rigid_align(s.from, s.to, RigidParams(), std::vector<double>(10, 0.0)),
-               std::runtime_error);
+               BadInput);
   RigidParams bad;
   bad.inlier_mm = 0;
   try {
     rigid_align(s.from, s.to, bad);
     ADD_FAILURE() << "no exception";
-  } catch (const std::runtime_error &e) {
+  } catch (const BadSettings &e) {
     EXPECT_NE(std::string(e.what()).find("inlier_mm"), std::string::npos) << e.what();
   }
   bad = RigidParams();
   bad.min_inliers = 2;
-  EXPECT_THROW(rigid_align(s.from, s.to, bad), std::runtime_error);
+  EXPECT_THROW(rigid_align(s.from, s.to, bad), BadSettings);
+}
+
+TEST(RigidAlign, ErrorsAreTypedAndNameTheProblem)
+{
+  const std::vector<cv::Point3d> three(3), two(2);
+  expect_typed_error<BadInput>([&] { rigid_align(three, two); }, "differ in length");
+  RigidParams bad;
+  bad.min_inliers = 2;
+  expect_typed_error<BadSettings>([&] { rigid_align(three, three, bad); }, "min_inliers");
 }
 
 // ---- estimate_motion on the synthetic orchard ----
@@ -551,17 +562,17 @@ TEST(Odometer, BadParametersThrow)
 {
   OdometerParams p;
   p.key_span_mm = -1;
-  EXPECT_THROW(Odometer{p}, std::runtime_error);
+  EXPECT_THROW(Odometer{p}, BadSettings);
   p.key_span_mm = p.travel.max_travel_mm + 1;
   try {
     Odometer o(p);
     ADD_FAILURE() << "no exception";
-  } catch (const std::runtime_error &e) {
+  } catch (const BadSettings &e) {
     EXPECT_NE(std::string(e.what()).find("key_span_mm"), std::string::npos) << e.what();
   }
   p = OdometerParams();
   p.travel.window = 4;
-  EXPECT_THROW(Odometer{p}, std::runtime_error);
+  EXPECT_THROW(Odometer{p}, BadSettings);
 }
 
 TEST(EstimateMotion, BadInputAndParametersThrow)
@@ -575,16 +586,16 @@ TEST(EstimateMotion, BadInputAndParametersThrow)
   cv::resize(l, small, cv::Size(320, 240));
   cv::cvtColor(l, grey, cv::COLOR_BGR2GRAY);
   l.convertTo(wide, CV_16U);
-  EXPECT_THROW(estimate_motion(pl, pr, small, r, cur.vegetation, *g), std::runtime_error);
-  EXPECT_THROW(estimate_motion(pl, pr, grey, r, cur.vegetation, *g), std::runtime_error);
-  EXPECT_THROW(estimate_motion(wide, wide, wide, wide, cur.vegetation, *g), std::runtime_error);
-  EXPECT_THROW(estimate_motion(pl, pr, l, r, cur.vegetation, StereoGeometry()), std::runtime_error);
+  EXPECT_THROW(estimate_motion(pl, pr, small, r, cur.vegetation, *g), BadInput);
+  EXPECT_THROW(estimate_motion(pl, pr, grey, r, cur.vegetation, *g), BadInput);
+  EXPECT_THROW(estimate_motion(wide, wide, wide, wide, cur.vegetation, *g), BadInput);
+  EXPECT_THROW(estimate_motion(pl, pr, l, r, cur.vegetation, StereoGeometry()), BadInput);
 
   auto field_named = [&](TravelParams p, const char *field) {
     try {
       estimate_motion(pl, pr, l, r, cur.vegetation, *g, p);
       ADD_FAILURE() << field << ": no exception";
-    } catch (const std::runtime_error &e) {
+    } catch (const BadSettings &e) {
       EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
     }
   };

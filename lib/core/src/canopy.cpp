@@ -1,5 +1,6 @@
 #include "treestereo/canopy.hpp"
 
+#include "treestereo/errors.hpp"
 #include "treestereo/features.hpp"
 #include "treestereo/segment.hpp"
 #include "zncc.hpp"
@@ -27,7 +28,8 @@ CanopyMode canopy_mode_from_name(const std::string &name)
     return CanopyMode::Tree;
   if (name == "row")
     return CanopyMode::Row;
-  throw std::runtime_error("unknown canopy mode '" + name + "' (valid: tree, row)");
+  throw BadSettings("Unknown canopy mode '" + name + "': use tree or row.",
+                    "canopy_mode_from_name(\"" + name + "\")");
 }
 
 const char *ground_model_name(GroundModel model)
@@ -47,7 +49,8 @@ GroundModel ground_model_from_name(const std::string &name)
     return GroundModel::Fit;
   if (name == "rig")
     return GroundModel::Rig;
-  throw std::runtime_error("unknown ground model '" + name + "' (valid: off, fit, rig)");
+  throw BadSettings("Unknown ground model '" + name + "': use off, fit or rig.",
+                    "ground_model_from_name(\"" + name + "\")");
 }
 
 namespace {
@@ -55,7 +58,9 @@ namespace {
 void require(bool ok, const char *field, const char *range)
 {
   if (!ok)
-    throw std::runtime_error(std::string("canopy parameter ") + field + " out of range: " + range);
+    throw BadSettings(std::string("The canopy setting ") + field +
+                          " is out of range: set it to " + range + ".",
+                      std::string("canopy parameters: ") + field + " outside " + range);
 }
 
 constexpr double kDeg = CV_PI / 180.0;
@@ -419,12 +424,25 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
 {
   validate(p);
   if (!g.valid())
-    throw std::runtime_error("select_canopy: the stereo geometry is not valid");
+    throw BadInput("The stereo geometry is not valid: the canopy needs a calibrated, rectified "
+                   "pair (fx and baseline above 0, a view size).",
+                   "select_canopy: " + describe(g));
   if (vegetation.type() != CV_8U || vegetation.size() != g.view_size)
-    throw std::runtime_error("select_canopy: the vegetation mask must be CV_8U of the view size");
+    throw BadInput("The vegetation mask does not fit the view: give an 8-bit mask of the view's "
+                   "size.",
+                   "select_canopy: mask type " + std::to_string(vegetation.type()) + ", " +
+                       std::to_string(vegetation.cols) + "x" + std::to_string(vegetation.rows) +
+                       " for a view of " + std::to_string(g.view_size.width) + "x" +
+                       std::to_string(g.view_size.height));
   const bool seam = p.seam_half_window > 0 && !left.empty() && !right.empty();
   if (seam && (left.size() != g.view_size || right.size() != g.view_size))
-    throw std::runtime_error("select_canopy: the views must have the geometry's view size");
+    throw BadInput("The views are not of the stereo geometry's view size: give the rectified "
+                   "views the geometry describes.",
+                   "select_canopy: left " + std::to_string(left.cols) + "x" +
+                       std::to_string(left.rows) + ", right " + std::to_string(right.cols) +
+                       "x" + std::to_string(right.rows) + ", geometry " +
+                       std::to_string(g.view_size.width) + "x" +
+                       std::to_string(g.view_size.height));
 
   CanopyResult r;
   const cv::Size size = g.view_size;
@@ -1029,9 +1047,13 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
                          const CanopyDepthParams &p)
 {
   if (vegetation.mask.empty())
-    throw std::runtime_error("canopy_depth: the vegetation silhouette has no mask");
+    throw BadInput("The vegetation silhouette has no mask: the canopy depth needs the "
+                   "segmentation's mask.",
+                   "canopy_depth: Silhouette::mask is empty");
   if (p.coarse_points < 1)
-    throw std::runtime_error("canopy_depth: coarse_points must be at least 1");
+    throw BadSettings("The canopy depth setting coarse_points is out of range: set it to 1 or "
+                      "more.",
+                      "canopy_depth: coarse_points = " + std::to_string(p.coarse_points));
   CanopyDepth out;
   // 1. Everything green, coarsely: the seeds and a coarse grid, triangulated without the
   // outlier cut (the next row is no outlier here, it is what the canopy is told from).
@@ -1121,7 +1143,9 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
 
 double depth_support(const cv::Mat &mask, const std::vector<cv::Point2f> &px, double radius_px)
 {
-  CV_Assert(mask.type() == CV_8U);
+  if (mask.type() != CV_8U)
+    throw BadInput("The silhouette mask is not 8-bit: the depth support needs an 8-bit mask.",
+                   "depth_support: mask type " + std::to_string(mask.type()));
   const int total = cv::countNonZero(mask);
   if (total == 0)
     return 0.0;

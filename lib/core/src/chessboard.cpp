@@ -1,6 +1,8 @@
 // Chessboard stereo calibration and the rectification check.
 #include "treestereo/chessboard.hpp"
 
+#include "treestereo/errors.hpp"
+
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -18,13 +20,17 @@ constexpr std::size_t kMinPairs = 3;
 cv::Mat to_gray(const cv::Mat &image)
 {
   if (image.depth() != CV_8U)
-    throw std::invalid_argument("chessboard image must be 8-bit");
+    throw BadInput("A chessboard image is not 8-bit: give 8-bit grey or colour images.",
+                   "chessboard: image depth " + std::to_string(image.depth()));
   cv::Mat gray;
   switch (image.channels()) {
   case 1: gray = image; break;
   case 3: cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY); break;
   case 4: cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY); break;
-  default: throw std::invalid_argument("chessboard image must have 1, 3 or 4 channels");
+  default:
+    throw BadInput("A chessboard image has an unusable number of channels: give grey, BGR or "
+                   "BGRA images.",
+                   "chessboard: image of " + std::to_string(image.channels()) + " channels");
   }
   return gray;
 }
@@ -87,10 +93,21 @@ Detections detect_pairs(const std::vector<ChessboardPair> &pairs, cv::Size board
   return d;
 }
 
+// The rejected pairs and why, for an error's detail: "a: board not found in left image; ...".
+std::string rejections(const std::vector<RejectedPair> &rejected)
+{
+  std::string out;
+  for (const RejectedPair &r : rejected)
+    out += (out.empty() ? "" : "; ") + r.name + ": " + r.reason;
+  return out;
+}
+
 void check_board(cv::Size board)
 {
   if (board.width < 2 || board.height < 2)
-    throw std::invalid_argument("the board needs at least 2x2 inner corners");
+    throw BadSettings("The board is too small: give its inner corners, at least 2x2.",
+                      "chessboard: board " + std::to_string(board.width) + "x" +
+                          std::to_string(board.height) + " inner corners");
 }
 
 } // namespace
@@ -125,14 +142,18 @@ ChessboardCalibration calibrate_chessboard(const std::vector<ChessboardPair> &pa
 {
   check_board(board);
   if (!(square > 0) || !std::isfinite(square))
-    throw std::invalid_argument("the square size must be a positive length (mm)");
+    throw BadSettings("The square size cannot be used: give the side of a square as a length "
+                      "above 0 (mm).",
+                      "calibrate_chessboard: square " + std::to_string(square));
   Detections d = detect_pairs(pairs, board, cv::Size());
   if (d.used.size() < kMinPairs)
-    throw std::runtime_error("only " + std::to_string(d.used.size()) + " of " +
-                             std::to_string(pairs.size()) + " pairs show the whole " +
-                             std::to_string(board.width) + "x" + std::to_string(board.height) +
-                             " board in both views; at least " + std::to_string(kMinPairs) +
-                             " are needed (check --board: inner corners, not squares)");
+    throw BadInput("Too few image pairs show the board: only " + std::to_string(d.used.size()) +
+                       " of " + std::to_string(pairs.size()) + " pairs show the whole " +
+                       std::to_string(board.width) + "x" + std::to_string(board.height) +
+                       " board in both views and at least " + std::to_string(kMinPairs) +
+                       " are needed; check the board size (inner corners, not squares) or take "
+                       "more pairs.",
+                   "rejected: " + rejections(d.rejected));
   const std::vector<std::vector<cv::Point3f>> objects(d.used.size(), board_points(board, square));
 
   ChessboardCalibration out;
@@ -169,8 +190,11 @@ RectificationCheck check_rectification(const StereoCalibration &calib,
   out.used = d.used;
   out.rejected = d.rejected;
   if (d.used.empty())
-    throw std::runtime_error("no pair shows the whole " + std::to_string(board.width) + "x" +
-                             std::to_string(board.height) + " board in both views");
+    throw BadInput("No image pair shows the whole " + std::to_string(board.width) + "x" +
+                       std::to_string(board.height) +
+                       " board in both views: check the board size (inner corners, not squares) "
+                       "or take pairs that show it.",
+                   "rejected: " + rejections(d.rejected));
   // Same stereoRectify as the pipeline, but on points: exact, and no map quantisation.
   cv::Mat R1, R2, P1, P2, Q;
   const StereoCalibration c = scale_calibration(calib, d.size);
@@ -201,32 +225,36 @@ RectificationCheck check_rectification(const StereoCalibration &calib,
 std::vector<std::string> read_image_list(const std::string &path)
 {
   if (!std::ifstream(path))
-    throw std::runtime_error(path + ": image list is missing or cannot be read");
+    throw FileError(path, FileAccess::Read,
+                    path + ": image list is missing or cannot be read");
   cv::FileStorage fs;
   try {
     fs.open(path, cv::FileStorage::READ);
   } catch (const cv::Exception &e) {
-    throw std::runtime_error(path + ": not a valid OpenCV image list (" + e.err + ")");
+    throw FileError(path, FileAccess::None,
+                    path + ": not a valid OpenCV image list (" + e.err + ")");
   }
   if (!fs.isOpened())
-    throw std::runtime_error(path + ": image list is missing or cannot be read");
+    throw FileError(path, FileAccess::Read,
+                    path + ": image list is missing or cannot be read");
   cv::FileNode list = fs["imagelist"];
   if (list.empty() && fs.root().isSeq())
     list = fs.root();
   if (!list.isSeq())
-    throw std::runtime_error(path + ": no 'imagelist' sequence of file names");
+    throw FileError(path, FileAccess::None, path + ": no 'imagelist' sequence of file names");
   const auto slash = path.find_last_of('/');
   const std::string folder = slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
   std::vector<std::string> out;
   for (const cv::FileNode &n : list) {
     if (!n.isString())
-      throw std::runtime_error(path + ": 'imagelist' must hold file names only");
+      throw FileError(path, FileAccess::None, path + ": 'imagelist' must hold file names only");
     const std::string name = n.string();
     out.push_back(!name.empty() && name[0] == '/' ? name : folder + name);
   }
   if (out.empty() || out.size() % 2 != 0)
-    throw std::runtime_error(path + ": the list holds " + std::to_string(out.size()) +
-                             " names; expected left and right alternating (an even count)");
+    throw FileError(path, FileAccess::None,
+                    path + ": the list holds " + std::to_string(out.size()) +
+                        " names; expected left and right alternating (an even count)");
   return out;
 }
 

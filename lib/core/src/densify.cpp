@@ -1,5 +1,6 @@
 #include "treestereo/densify.hpp"
 
+#include "treestereo/errors.hpp"
 #include "treestereo/features.hpp"
 #include "treestereo/stats.hpp"
 
@@ -21,19 +22,31 @@ void check_input(const cv::Mat &left, const cv::Mat &right, const cv::Mat &mask,
                  const DensifyParams &p)
 {
   if (left.empty() || left.size() != right.size() || left.type() != right.type())
-    throw std::runtime_error("densify: the two views must be non-empty, of the same size and "
-                             "of the same type");
-  if (mask.type() != CV_8UC1 || mask.size() != left.size())
-    throw std::runtime_error("densify: the left mask must be CV_8U of the views' size " +
-                             std::to_string(left.cols) + "x" + std::to_string(left.rows));
+    throw BadInput("The views cannot be matched densely: give two non-empty views of the same "
+                   "size and type.",
+                   "densify: left " + std::to_string(left.cols) + "x" + std::to_string(left.rows) +
+                       " type " + std::to_string(left.type()) + ", right " +
+                       std::to_string(right.cols) + "x" + std::to_string(right.rows) + " type " +
+                       std::to_string(right.type()));
+  check_mask(mask, left.size(), "densify (the left mask)");
   if (p.step < 0 || p.target_points < 1 || p.half_window < 1 || !(p.min_zncc <= 1.0) ||
       !(p.min_margin >= 0.0) || !(p.seed_percentile >= 0.0) || !(p.seed_percentile < 50.0) ||
       !(p.search_margin_px >= 0.0) || p.min_seeds < 1 || !(p.edge_band >= 0.0) ||
       !(p.edge_band <= 0.5) || p.edge_step < 0)
-    throw std::runtime_error("densify: parameters out of range (step >= 0, target points >= 1, "
-                             "half window >= 1, min zncc <= 1, margin >= 0, seed percentile in "
-                             "[0, 50), search margin >= 0, min seeds >= 1, edge band in "
-                             "[0, 0.5], edge step >= 0)");
+    throw BadSettings("A dense matching setting is out of range: keep step >= 0, target points "
+                      ">= 1, half window >= 1, min zncc <= 1, margin >= 0, seed percentile in "
+                      "[0, 50), search margin >= 0, min seeds >= 1, edge band in [0, 0.5] and "
+                      "edge step >= 0.",
+                      "DensifyParams: step=" + std::to_string(p.step) +
+                          " target_points=" + std::to_string(p.target_points) +
+                          " half_window=" + std::to_string(p.half_window) +
+                          " min_zncc=" + std::to_string(p.min_zncc) +
+                          " min_margin=" + std::to_string(p.min_margin) +
+                          " seed_percentile=" + std::to_string(p.seed_percentile) +
+                          " search_margin_px=" + std::to_string(p.search_margin_px) +
+                          " min_seeds=" + std::to_string(p.min_seeds) +
+                          " edge_band=" + std::to_string(p.edge_band) +
+                          " edge_step=" + std::to_string(p.edge_step));
 }
 
 enum class Outcome { kKept, kFlat, kWeak, kAmbiguous, kInconsistent };

@@ -1,5 +1,7 @@
 #include "treestereo/features.hpp"
 
+#include "treestereo/errors.hpp"
+
 #include <opencv2/imgproc.hpp>
 
 #include <chrono>
@@ -11,10 +13,11 @@ namespace treestereo {
 cv::Mat to_gray8(const cv::Mat &view)
 {
   if (view.empty())
-    throw std::runtime_error("feature detection: the view is empty");
+    throw BadInput("The view is empty: give an image.",
+                   "to_gray8: empty cv::Mat");
   if (view.depth() != CV_8U)
-    throw std::runtime_error("feature detection: the view must be 8-bit (got depth " +
-                             std::to_string(view.depth()) + ")");
+    throw BadInput("The view is not 8-bit: give 8-bit grey or colour frames.",
+                   "to_gray8: depth " + std::to_string(view.depth()));
   switch (view.channels()) {
   case 1:
     return view;
@@ -29,8 +32,9 @@ cv::Mat to_gray8(const cv::Mat &view)
     return g;
   }
   default:
-    throw std::runtime_error("feature detection: the view must have 1, 3 or 4 channels (got " +
-                             std::to_string(view.channels()) + ")");
+    throw BadInput("The view has an unusable number of channels: give grey, BGR or BGRA (1, 3 "
+                   "or 4 channels).",
+                   "to_gray8: " + std::to_string(view.channels()) + " channels");
   }
 }
 
@@ -41,9 +45,13 @@ cv::Mat to_gray8(const cv::Mat &view, const ChannelOrder &order)
   if (view.depth() != CV_8U || view.channels() != order.channels || order.r < 0 || order.g < 0 ||
       order.b < 0 || order.r >= order.channels || order.g >= order.channels ||
       order.b >= order.channels)
-    throw std::runtime_error("grey conversion: the view (" + std::to_string(view.channels()) +
-                             " channels) does not match the pixel layout (" +
-                             std::to_string(order.channels) + " channels)");
+    throw BadInput("The view does not match its pixel layout: give an 8-bit view with the "
+                   "layout's channel count and R, G, B within it.",
+                   "to_gray8: view of " + std::to_string(view.channels()) + " channels, depth " +
+                       std::to_string(view.depth()) + "; layout of " +
+                       std::to_string(order.channels) + " channels, r=" +
+                       std::to_string(order.r) + " g=" + std::to_string(order.g) +
+                       " b=" + std::to_string(order.b));
   // The usual layouts by cvtColor (fixed-point, ten times faster than the general transform;
   // the two agree within one grey level).
   const bool rgb = order.r == 0 && order.g == 1 && order.b == 2;
@@ -66,13 +74,23 @@ cv::Mat to_gray8(const cv::Mat &view, const ChannelOrder &order)
   return out;
 }
 
+void check_mask(const cv::Mat &mask, const cv::Size &view_size, const char *where)
+{
+  if (mask.type() != CV_8UC1 || mask.size() != view_size)
+    throw BadInput("The mask does not fit the view: give a one-channel 8-bit mask of the view's "
+                   "size.",
+                   std::string(where) + ": mask type " + std::to_string(mask.type()) + ", " +
+                       std::to_string(mask.cols) + "x" + std::to_string(mask.rows) +
+                       " for a view of " + std::to_string(view_size.width) + "x" +
+                       std::to_string(view_size.height));
+}
+
 cv::Rect detection_region(const cv::Size &view_size, const cv::Mat &mask, int margin)
 {
   const cv::Rect whole(cv::Point(0, 0), view_size);
   if (mask.empty())
     return whole;
-  if (mask.type() != CV_8UC1 || mask.size() != view_size)
-    throw std::runtime_error("feature detection: the mask must be CV_8UC1 of the view's size");
+  check_mask(mask, view_size, "detection_region");
   cv::Rect box = cv::boundingRect(mask); // bounding box of the non-zero pixels
   if (box.area() == 0)
     return cv::Rect();
@@ -87,16 +105,25 @@ namespace {
 const DetectParams &checked(const DetectParams &params)
 {
   if (!(params.scale > 0.0 && params.scale <= 1.0))
-    throw std::runtime_error("feature detection: scale must be in (0, 1], got " +
-                             std::to_string(params.scale));
+    throw BadSettings("The feature detection scale is out of range: set it above 0, at most 1.",
+                      "DetectParams.scale = " + std::to_string(params.scale));
   if (params.nfeatures < 0)
-    throw std::runtime_error("feature detection: nfeatures must be >= 0");
+    throw BadSettings("The feature detection setting nfeatures is out of range: set it to 0 or "
+                      "more.",
+                      "DetectParams.nfeatures = " + std::to_string(params.nfeatures));
   if (!(params.contrast_threshold > 0.0))
-    throw std::runtime_error("feature detection: contrast_threshold must be > 0");
+    throw BadSettings("The feature detection setting contrast_threshold is out of range: set it "
+                      "above 0.",
+                      "DetectParams.contrast_threshold = " +
+                          std::to_string(params.contrast_threshold));
   if (params.roi_margin < 0)
-    throw std::runtime_error("feature detection: roi_margin must be >= 0");
+    throw BadSettings("The feature detection setting roi_margin is out of range: set it to 0 or "
+                      "more.",
+                      "DetectParams.roi_margin = " + std::to_string(params.roi_margin));
   if (params.mask_inset < 0)
-    throw std::runtime_error("feature detection: mask_inset must be >= 0");
+    throw BadSettings("The feature detection setting mask_inset is out of range: set it to 0 or "
+                      "more.",
+                      "DetectParams.mask_inset = " + std::to_string(params.mask_inset));
   return params;
 }
 
@@ -130,8 +157,8 @@ LocatedFeatures FeatureDetector::locate(const cv::Mat &view, const cv::Mat &mask
   const bool masked = params_.use_mask && !mask.empty();
   f.region = (masked && params_.roi) ? detection_region(gray.size(), mask, params_.roi_margin)
                                      : cv::Rect(cv::Point(0, 0), gray.size());
-  if (masked && (mask.type() != CV_8UC1 || mask.size() != gray.size()))
-    throw std::runtime_error("feature detection: the mask must be CV_8UC1 of the view's size");
+  if (masked)
+    check_mask(mask, gray.size(), "FeatureDetector::locate");
 
   // Too small for SIFT's border and descriptor support: nothing to find.
   if (f.region.width * params_.scale >= 16 && f.region.height * params_.scale >= 16) {
@@ -180,7 +207,10 @@ Features FeatureDetector::describe(LocatedFeatures &&located, const std::vector<
   const auto t0 = std::chrono::steady_clock::now();
   Features f = std::move(located.features);
   if (!needed.empty() && needed.size() != f.keypoints.size())
-    throw std::runtime_error("feature description: one 'needed' flag per keypoint expected");
+    throw BadInput("The keypoints to describe do not match their flags: give one 'needed' flag "
+                   "per keypoint.",
+                   "FeatureDetector::describe: " + std::to_string(needed.size()) + " flags for " +
+                       std::to_string(f.keypoints.size()) + " keypoints");
   if (params_.engine == SiftEngine::Upright)
     f.descriptors = upright_.describe(located.pyramid, located.detection_kps, needed);
   if (f.descriptors.empty())

@@ -1,5 +1,7 @@
 #include "treestereo/match.hpp"
 
+#include "treestereo/errors.hpp"
+
 #include <opencv2/core/hal/hal.hpp>
 
 #include <algorithm>
@@ -17,8 +19,8 @@ MatchMethod parse_match_method(const std::string &name)
     return MatchMethod::Euclidean;
   if (name == "cosine-norm")
     return MatchMethod::CosineNorm;
-  throw std::runtime_error("unknown match method '" + name +
-                           "' (expected 'euclidean' or 'cosine-norm')");
+  throw BadSettings("Unknown match method '" + name + "': use euclidean or cosine-norm.",
+                    "parse_match_method(\"" + name + "\")");
 }
 
 const char *match_method_name(MatchMethod method)
@@ -30,9 +32,15 @@ DisparityRange disparity_range_for_depth(const StereoGeometry &g, double z_near_
                                          double z_far_mm)
 {
   if (!(g.fx > 0 && g.baseline_mm > 0))
-    throw std::runtime_error("disparity range: the stereo geometry needs fx > 0 and a baseline");
+    throw BadInput("The stereo geometry has no focal length or baseline: the disparity range "
+                   "needs a calibrated pair (fx and baseline above 0).",
+                   "disparity_range_for_depth: fx=" + std::to_string(g.fx) +
+                       " baseline_mm=" + std::to_string(g.baseline_mm));
   if (!(z_near_mm > 0 && z_far_mm > z_near_mm))
-    throw std::runtime_error("disparity range: need 0 < near < far (mm)");
+    throw BadSettings("The depth range for matching is empty: set the near depth above 0 and "
+                      "the far depth above it.",
+                      "disparity_range_for_depth: near " + std::to_string(z_near_mm) +
+                          " mm, far " + std::to_string(z_far_mm) + " mm");
   const double k = g.fx * g.baseline_mm;
   return {k / z_far_mm + g.doffs(), k / z_near_mm + g.doffs()};
 }
@@ -54,8 +62,14 @@ void check_features(const Features &f, const char *which)
   if (f.descriptors.rows != int(f.keypoints.size()) ||
       (f.descriptors.rows > 0 &&
        (f.descriptors.type() != CV_32F || f.descriptors.cols != kDescriptorSize)))
-    throw std::runtime_error(std::string("matching: the ") + which +
-                             " features need one CV_32F row of 128 values per keypoint");
+    throw BadInput(std::string("The ") + which +
+                       " features cannot be matched: give one float descriptor of 128 values per "
+                       "keypoint.",
+                   std::string("match: ") + which + " descriptors " +
+                       std::to_string(f.descriptors.rows) + "x" +
+                       std::to_string(f.descriptors.cols) + " of type " +
+                       std::to_string(f.descriptors.type()) + " for " +
+                       std::to_string(f.keypoints.size()) + " keypoints");
 }
 
 std::vector<float> descriptor_norms(const cv::Mat &d)
@@ -311,11 +325,18 @@ std::vector<char> has_candidate(const std::vector<cv::KeyPoint> &query, bool que
 void check_matcher_params(const MatcherParams &p)
 {
   if (!(p.ratio > 0))
-    throw std::runtime_error("matching: ratio must be > 0 (>= 1 turns the ratio test off)");
+    throw BadSettings("The matching ratio is out of range: set it above 0 (1 or more turns the "
+                      "ratio test off).",
+                      "MatcherParams.ratio = " + std::to_string(p.ratio));
   if (p.candidates < 1)
-    throw std::runtime_error("matching: candidates must be >= 1");
+    throw BadSettings("The matching setting candidates is out of range: set it to 1 or more.",
+                      "MatcherParams.candidates = " + std::to_string(p.candidates));
   if (p.constraints.min_disparity > p.constraints.max_disparity)
-    throw std::runtime_error("matching: min_disparity is above max_disparity");
+    throw BadSettings("The matching disparity range is empty: set min_disparity at most "
+                      "max_disparity.",
+                      "StereoConstraints: min_disparity " +
+                          std::to_string(p.constraints.min_disparity) + " > max_disparity " +
+                          std::to_string(p.constraints.max_disparity));
 }
 
 } // namespace
@@ -383,9 +404,16 @@ StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,
                                      const cv::Mat &mask_left, const cv::Mat &mask_right) const
 {
   if (left.empty() || right.empty())
-    throw std::runtime_error("stereo matching: a view is empty");
+    throw BadInput("A view is empty: stereo matching needs a left and a right image.",
+                   "StereoMatcher::run: left " + std::to_string(left.cols) + "x" +
+                       std::to_string(left.rows) + ", right " + std::to_string(right.cols) + "x" +
+                       std::to_string(right.rows));
   if (params_.refine && left.size() != right.size())
-    throw std::runtime_error("stereo matching: refinement needs two views of the same size");
+    throw BadInput("The views differ in size: stereo matching with refinement needs a left and "
+                   "a right view of the same size.",
+                   "StereoMatcher::run: left " + std::to_string(left.cols) + "x" +
+                       std::to_string(left.rows) + ", right " + std::to_string(right.cols) + "x" +
+                       std::to_string(right.rows));
   StereoMatchResult res;
   auto t0 = std::chrono::steady_clock::now();
   // Grey once per view, for detection and for refinement, in the view's own thread. Then, with

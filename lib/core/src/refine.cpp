@@ -1,5 +1,7 @@
 #include "treestereo/match.hpp"
 
+#include "treestereo/errors.hpp"
+
 #include "zncc.hpp"
 
 #include <opencv2/core/utility.hpp>
@@ -173,30 +175,50 @@ cv::Point relocated(const cv::Mat &L, const cv::Mat &R, int xi, int yi, double x
 void check_refine_params(const RefineParams &p)
 {
   if (p.half_window < 1 || p.search < 0)
-    throw std::runtime_error("refinement: need half_window >= 1 and search >= 0");
+    throw BadSettings("A refinement setting is out of range: set half_window to 1 or more and "
+                      "search to 0 or more.",
+                      "RefineParams: half_window=" + std::to_string(p.half_window) +
+                          " search=" + std::to_string(p.search));
   if (!(p.min_zncc <= 1.0))
-    throw std::runtime_error("refinement: min_zncc must be <= 1");
+    throw BadSettings("The refinement setting min_zncc is out of range: set it to 1 or less.",
+                      "RefineParams.min_zncc = " + std::to_string(p.min_zncc));
   if (std::isnan(p.layer_tolerance))
-    throw std::runtime_error("refinement: layer_tolerance must be a number (negative = off)");
+    throw BadSettings("The refinement setting layer_tolerance is not a number: set a number "
+                      "(negative turns the layer test off).",
+                      "RefineParams.layer_tolerance = nan");
   if (p.layer_half_window < 1 || p.layer_search < 1)
-    throw std::runtime_error("refinement: need layer_half_window >= 1 and layer_search >= 1");
+    throw BadSettings("A refinement setting is out of range: set layer_half_window and "
+                      "layer_search to 1 or more.",
+                      "RefineParams: layer_half_window=" + std::to_string(p.layer_half_window) +
+                          " layer_search=" + std::to_string(p.layer_search));
   if (std::isnan(p.layer_centre_tolerance))
-    throw std::runtime_error(
-        "refinement: layer_centre_tolerance must be a number (negative = layer_tolerance)");
+    throw BadSettings("The refinement setting layer_centre_tolerance is not a number: set a "
+                      "number (negative uses layer_tolerance).",
+                      "RefineParams.layer_centre_tolerance = nan");
   if (!(p.layer_min_zncc <= 1.0) || !(p.layer_centre_min_zncc <= 1.0))
-    throw std::runtime_error(
-        "refinement: layer_min_zncc and layer_centre_min_zncc must be <= 1 (-1 = no minimum)");
+    throw BadSettings("A refinement setting is out of range: set layer_min_zncc and "
+                      "layer_centre_min_zncc to 1 or less (-1 for no minimum).",
+                      "RefineParams: layer_min_zncc=" + std::to_string(p.layer_min_zncc) +
+                          " layer_centre_min_zncc=" + std::to_string(p.layer_centre_min_zncc));
   if (!(p.min_zncc_drop >= 0 && p.min_zncc_drop <= 2))
-    throw std::runtime_error("refinement: min_zncc_drop must be within 0..2 (0 = off)");
+    throw BadSettings("The refinement setting min_zncc_drop is out of range: set it within 0 to "
+                      "2 (0 turns it off).",
+                      "RefineParams.min_zncc_drop = " + std::to_string(p.min_zncc_drop));
   if (p.relocate < 0 || p.relocate > 3)
-    throw std::runtime_error("refinement: relocate must be within 0..3 px (0 = off)");
+    throw BadSettings("The refinement setting relocate is out of range: set it within 0 to 3 px "
+                      "(0 turns it off).",
+                      "RefineParams.relocate = " + std::to_string(p.relocate));
 }
 
 std::size_t refine_matches(const cv::Mat &left, const cv::Mat &right,
                            std::vector<StereoMatch> &matches, const RefineParams &p)
 {
   if (left.size() != right.size())
-    throw std::runtime_error("refinement: the two views must have the same size");
+    throw BadInput("The views differ in size: refinement needs a left and a right view of the "
+                   "same size.",
+                   "refine_matches: left " + std::to_string(left.cols) + "x" +
+                       std::to_string(left.rows) + ", right " + std::to_string(right.cols) + "x" +
+                       std::to_string(right.rows));
   check_refine_params(p);
   const cv::Mat L = to_gray8(left), R = to_gray8(right);
   const int h = p.half_window, S = p.search;

@@ -1,5 +1,6 @@
 #include "treestereo/rowtrack.hpp"
 
+#include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
 
 #include <algorithm>
@@ -18,29 +19,39 @@ constexpr std::size_t kRecent = 4;
 void require(bool ok, const char *field, const char *range)
 {
   if (!ok)
-    throw std::runtime_error(std::string("tree tracker parameter ") + field +
-                             " out of range: " + range);
+    throw BadSettings(std::string("The tree tracker setting ") + field +
+                          " is out of range: set it to " + range + ".",
+                      std::string("tracker parameters: ") + field + " outside " + range);
 }
 
 void check_frame(const TrackFrame &f)
 {
   if (!std::isfinite(f.position_mm))
-    throw std::runtime_error("tree tracker: position_mm must be finite");
+    throw BadInput("The rig's position is not finite: the tree tracker needs a finite position "
+                   "along the row in each frame.",
+                   "TrackFrame::position_mm = " + std::to_string(f.position_mm));
   if (!std::isfinite(f.left_slope) || !std::isfinite(f.right_slope) ||
       !(f.left_slope < f.right_slope) || !std::isfinite(f.left_offset_mm))
-    throw std::runtime_error("tree tracker: the view's edge slopes must be finite with "
-                             "left_slope < right_slope, and left_offset_mm finite (see "
-                             "view_slopes())");
+    throw BadInput("The view's edges in the frame cannot be used: the tree tracker needs finite "
+                   "edge slopes, the left one below the right one (view_slopes() gives them).",
+                   "TrackFrame: left_slope=" + std::to_string(f.left_slope) + " right_slope=" +
+                       std::to_string(f.right_slope) + " left_offset_mm=" +
+                       std::to_string(f.left_offset_mm));
   if (f.measured_segment < -1 || f.measured_segment >= int(f.segments.size()))
-    throw std::runtime_error("tree tracker: measured_segment " +
-                             std::to_string(f.measured_segment) + " is not an index into the " +
-                             std::to_string(f.segments.size()) + " segments");
+    throw BadInput("The frame's measured segment is not one of its segments: give -1 or an "
+                   "index into the frame's segments.",
+                   "TrackFrame: measured_segment " + std::to_string(f.measured_segment) +
+                       " of " + std::to_string(f.segments.size()) + " segments");
   for (const RowSegment &s : f.segments)
     if (!std::isfinite(s.lo_mm) || !std::isfinite(s.hi_mm) || s.hi_mm < s.lo_mm ||
         !std::isfinite(s.near_mm) || !(s.near_mm > 0) || !(s.lo_z_mm >= 0) ||
         !(s.hi_z_mm >= 0) || !std::isfinite(s.lo_z_mm) || !std::isfinite(s.hi_z_mm))
-      throw std::runtime_error("tree tracker: a segment needs finite lo_mm <= hi_mm, a near_mm "
-                               "above 0 and lo_z_mm, hi_z_mm finite and 0 or above");
+      throw BadInput("A row segment in the frame cannot be used: each needs finite lo_mm <= "
+                     "hi_mm, a near_mm above 0 and lo_z_mm, hi_z_mm finite and 0 or above.",
+                     "RowSegment: lo_mm=" + std::to_string(s.lo_mm) + " hi_mm=" +
+                         std::to_string(s.hi_mm) + " near_mm=" + std::to_string(s.near_mm) +
+                         " lo_z_mm=" + std::to_string(s.lo_z_mm) +
+                         " hi_z_mm=" + std::to_string(s.hi_z_mm));
 }
 
 // A track keeps at most this many samples of each figure (the latest): a tree in view for longer
@@ -121,7 +132,9 @@ void view_slopes(const StereoGeometry &g, double &left_slope, double &right_slop
                  double &left_offset_mm)
 {
   if (!g.valid())
-    throw std::runtime_error("view_slopes: the stereo geometry is not valid");
+    throw BadInput("The stereo geometry is not valid: the view's edges need a calibrated, "
+                   "rectified pair (fx and baseline above 0, a view size).",
+                   "view_slopes: " + describe(g));
   right_slope = (g.view_size.width - 0.5 - g.cx[LEFT]) / g.fx;
   const double own = (-0.5 - g.cx[LEFT]) / g.fx, other = (-0.5 - g.cx[RIGHT]) / g.fx;
   if (other * 1000.0 + g.baseline_mm >= own * 1000.0) {

@@ -1,6 +1,8 @@
 // Nozzle sections from the row map (spray.hpp).
 #include "treestereo/spray.hpp"
 
+#include "treestereo/errors.hpp"
+
 #include <algorithm>
 #include <climits>
 #include <cmath>
@@ -14,26 +16,33 @@ namespace treestereo {
 namespace {
 // Lengths are sums of bin widths: a run of exactly min_canopy_m must count as min_canopy_m.
 constexpr double kEps = 1e-9;
+
+[[noreturn]] void bad_param(const char *field, const char *range, const std::string &value)
+{
+  throw BadSettings(std::string("The spray setting ") + field + " is out of range: set it to " +
+                        range + ".",
+                    std::string("SprayParams.") + field + " = " + value);
+}
 } // namespace
 
 void validate(const SprayParams &p)
 {
   if (p.n_sections < 1 || p.n_sections > 256)
-    throw std::runtime_error("spray parameter n_sections out of range: 1 to 256");
+    bad_param("n_sections", "1 to 256", std::to_string(p.n_sections));
   if (!std::isfinite(p.nozzle_offset_m) || p.nozzle_offset_m < 0 || p.nozzle_offset_m > 100)
-    throw std::runtime_error("spray parameter nozzle_offset_m out of range: 0 to 100 m");
+    bad_param("nozzle_offset_m", "0 to 100 m", std::to_string(p.nozzle_offset_m));
   if (p.valve_latency_ns < 0 || p.valve_latency_ns > 10000000000LL)
-    throw std::runtime_error("spray parameter valve_latency_ns out of range: 0 to 10 s");
+    bad_param("valve_latency_ns", "0 to 10 s", std::to_string(p.valve_latency_ns));
   if (!std::isfinite(p.min_gap_m) || p.min_gap_m < 0 || p.min_gap_m > 100)
-    throw std::runtime_error("spray parameter min_gap_m out of range: 0 to 100 m");
+    bad_param("min_gap_m", "0 to 100 m", std::to_string(p.min_gap_m));
   if (!std::isfinite(p.min_canopy_m) || p.min_canopy_m < 0 || p.min_canopy_m > 100)
-    throw std::runtime_error("spray parameter min_canopy_m out of range: 0 to 100 m");
+    bad_param("min_canopy_m", "0 to 100 m", std::to_string(p.min_canopy_m));
   if (!(p.rate_step > 0) || !(p.rate_step <= 1))
-    throw std::runtime_error("spray parameter rate_step out of range: above 0 to 1");
+    bad_param("rate_step", "above 0, at most 1", std::to_string(p.rate_step));
   if (p.hold_time_ns <= 0)
-    throw std::runtime_error("spray parameter hold_time_ns must be above 0");
+    bad_param("hold_time_ns", "above 0", std::to_string(p.hold_time_ns));
   if (p.speed_window_ns <= 0)
-    throw std::runtime_error("spray parameter speed_window_ns must be above 0");
+    bad_param("speed_window_ns", "above 0", std::to_string(p.speed_window_ns));
 }
 
 std::vector<SectionRange> parse_section_heights(const std::string &text)
@@ -47,23 +56,26 @@ std::vector<SectionRange> parse_section_heights(const std::string &text)
     if (comma == std::string::npos)
       comma = text.size();
     const std::string item = text.substr(start, comma - start);
-    const std::string where = "section heights \"" + text + "\": item \"" + item + "\" ";
+    const std::string where = "Section heights \"" + text + "\": item \"" + item + "\" ";
+    const std::string detail = "parse_section_heights: item at character " + std::to_string(start);
+    const std::string fix = "; write each item as lo:hi, heights in m above the ground with lo "
+                            "below hi, items comma separated (e.g. 0.4:0.7,0.7:1.0).";
     const std::size_t colon = item.find(':');
     if (colon == std::string::npos)
-      throw std::runtime_error(where + "is not lo:hi (heights in m above the ground)");
+      throw BadSettings(where + "is not lo:hi (heights in m above the ground)" + fix, detail);
     const std::string a = item.substr(0, colon), b = item.substr(colon + 1);
     char *end = nullptr;
     SectionRange r;
     r.lo_m = std::strtod(a.c_str(), &end);
     if (a.empty() || *end != '\0' || !std::isfinite(r.lo_m))
-      throw std::runtime_error(where + "has no number before ':'");
+      throw BadSettings(where + "has no number before ':'" + fix, detail);
     r.hi_m = std::strtod(b.c_str(), &end);
     if (b.empty() || *end != '\0' || !std::isfinite(r.hi_m))
-      throw std::runtime_error(where + "has no number after ':'");
+      throw BadSettings(where + "has no number after ':'" + fix, detail);
     if (r.lo_m < 0)
-      throw std::runtime_error(where + "starts below the ground (negative height)");
+      throw BadSettings(where + "starts below the ground (negative height)" + fix, detail);
     if (!(r.lo_m < r.hi_m))
-      throw std::runtime_error(where + "is empty: lo must be below hi");
+      throw BadSettings(where + "is empty: lo must be below hi" + fix, detail);
     out.push_back(r);
     start = comma + 1;
   }
@@ -75,8 +87,10 @@ std::vector<SliceSection> sections_of(const std::vector<RowMapCell> &cells,
                                       const std::vector<SectionRange> &ranges)
 {
   if (band_edges_mm.size() != cells.size() + 1)
-    throw std::runtime_error("spray: " + std::to_string(cells.size()) + " cells for " +
-                             std::to_string(band_edges_mm.size()) + " band edges");
+    throw BadInput("The row map's cells and band edges do not agree: give one band edge more "
+                   "than cells.",
+                   "sections_of: " + std::to_string(cells.size()) + " cells for " +
+                       std::to_string(band_edges_mm.size()) + " band edges");
   std::vector<SliceSection> out;
   if (ranges.empty()) {
     for (const RowMapCell &c : cells) {
@@ -262,11 +276,15 @@ std::vector<SectionCommand> SprayPlanner::update(std::int64_t running_ns, double
                                                  const std::vector<SpraySlice> &slices)
 {
   if (!std::isfinite(position_m))
-    throw std::runtime_error("spray: the rig's position must be finite");
+    throw BadInput("The rig's position is not finite: the spray planner needs a finite "
+                   "position along the row.",
+                   "SprayPlanner::update: position_m = " + std::to_string(position_m));
   for (const SpraySlice &sl : slices)
     if (int(sl.sections.size()) != p_.n_sections)
-      throw std::runtime_error("spray: a slice with " + std::to_string(sl.sections.size()) +
-                               " sections, the planner has " + std::to_string(p_.n_sections));
+      throw BadInput("A row map slice does not have the spray planner's section count: give "
+                     "slices with one entry per nozzle section.",
+                     "SprayPlanner::update: a slice with " + std::to_string(sl.sections.size()) +
+                         " sections, the planner has " + std::to_string(p_.n_sections));
   if (fallback_) {
     // Data again: control resumes from the state the fallback left the valves in.
     fallback_ = false;

@@ -1,6 +1,7 @@
 #include "treestereo/travel.hpp"
 
 #include "treestereo/depth.hpp"
+#include "treestereo/errors.hpp"
 #include "treestereo/features.hpp"
 
 #include <opencv2/calib3d.hpp>
@@ -23,7 +24,9 @@ namespace
 void require(bool ok, const char *what, const char *field, const char *range)
 {
   if (!ok)
-    throw std::runtime_error(std::string(what) + " parameter " + field + " out of range: " + range);
+    throw BadSettings(std::string("The ") + what + " setting " + field +
+                          " is out of range: set it to " + range + ".",
+                      std::string(what) + " parameters: " + field + " outside " + range);
 }
 
 // A 3-point sample is refused when its triangle is this flat (the sine of its angle at the first
@@ -112,12 +115,20 @@ RigidResult rigid_align(const std::vector<cv::Point3d> &from, const std::vector<
 {
   validate(p);
   if (from.size() != to.size())
-    throw std::runtime_error("rigid_align: the point sets differ in length");
+    throw BadInput("The two point sets to align differ in length: give one point in each per "
+                   "correspondence.",
+                   "rigid_align: " + std::to_string(from.size()) + " and " +
+                       std::to_string(to.size()) + " points");
   if (!tolerance_mm.empty() && tolerance_mm.size() != from.size())
-    throw std::runtime_error("rigid_align: one tolerance per correspondence needed");
+    throw BadInput("The tolerances do not match the correspondences: give one tolerance per "
+                   "correspondence, or none.",
+                   "rigid_align: " + std::to_string(tolerance_mm.size()) + " tolerances for " +
+                       std::to_string(from.size()) + " correspondences");
   for (double tol : tolerance_mm)
     if (!(tol > 0) || !std::isfinite(tol))
-      throw std::runtime_error("rigid_align: a tolerance is not above 0");
+      throw BadInput("A correspondence's tolerance cannot be used: give finite tolerances above "
+                     "0 mm.",
+                     "rigid_align: tolerance " + std::to_string(tol) + " mm");
 
   RigidResult out;
   const std::size_t n = from.size();
@@ -631,17 +642,29 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
 {
   validate(p);
   if (!g.valid())
-    throw std::runtime_error("estimate_motion: the stereo geometry is not valid");
+    throw BadInput("The stereo geometry is not valid: the rig's motion needs a calibrated, "
+                   "rectified pair (fx and baseline above 0, a view size).",
+                   "estimate_motion: " + describe(g));
   const cv::Mat *views[4] = {&prev_left, &prev_right, &left, &right};
   for (const cv::Mat *v : views) {
     if (v->size() != g.view_size)
-      throw std::runtime_error("estimate_motion: a view is not of the geometry's view size");
+      throw BadInput("A view is not of the stereo geometry's view size: give the rectified "
+                     "views the geometry describes.",
+                     "estimate_motion: a view of " + std::to_string(v->cols) + "x" +
+                         std::to_string(v->rows) + ", geometry " +
+                         std::to_string(g.view_size.width) + "x" +
+                         std::to_string(g.view_size.height));
     if (v->type() != left.type())
-      throw std::runtime_error("estimate_motion: the views differ in type");
+      throw BadInput("The views differ in pixel type: give four views of one type.",
+                     "estimate_motion: type " + std::to_string(v->type()) + " and " +
+                         std::to_string(left.type()));
   }
   if (left.depth() != CV_8U ||
       (left.channels() != 1 && left.channels() != 3 && left.channels() != 4))
-    throw std::runtime_error("estimate_motion: views must be 8-bit grey, BGR or BGRA");
+    throw BadInput("The views' pixel type cannot be used: the rig's motion needs 8-bit grey, "
+                   "BGR or BGRA views.",
+                   "estimate_motion: depth " + std::to_string(left.depth()) + ", " +
+                       std::to_string(left.channels()) + " channels");
 
   Motion out;
   cv::Vec3d along(1, 0, 0);

@@ -118,7 +118,7 @@ struct CanopyParams {
   int seam_half_window = 3;
 };
 
-// Throws std::runtime_error naming the field when a value is out of range.
+// Throws BadSettings naming the field when a value is out of range.
 void validate(const CanopyParams &params);
 
 // What each input point was found to be.
@@ -176,7 +176,7 @@ struct PixelPoint {
 // rectified views (8-bit grey or as `order` says), for the seam test (may be empty: no seam
 // test). `colour`: the silhouette `vegetation` is the mask of, if at hand: its box bounds the
 // work, and when the canopy is all of it its figures are taken as they are. Throws
-// std::runtime_error on inconsistent input or parameters.
+// BadInput on inconsistent input, BadSettings on parameters out of range.
 CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoint> &points,
                            const StereoGeometry &geometry, const CanopyParams &params,
                            const cv::Mat &left = cv::Mat(), const cv::Mat &right = cv::Mat(),
@@ -208,8 +208,8 @@ struct CanopyDepth {
 };
 
 // `left`, `right`: the rectified views (grey, or colour as params.grid.order says);
-// `vegetation`: the left view's colour silhouette (with its mask). Throws std::runtime_error on
-// bad input.
+// `vegetation`: the left view's colour silhouette (with its mask). Throws BadInput on bad input,
+// BadSettings on coarse_points below 1.
 CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhouette &vegetation,
                          const std::vector<StereoMatch> &seeds, const StereoGeometry &geometry,
                          const CanopyDepthParams &params);

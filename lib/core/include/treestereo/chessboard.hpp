@@ -39,7 +39,8 @@ bool find_chessboard(const cv::Mat &image, cv::Size board, std::vector<cv::Point
 // size (from each other or from the first usable pair), are rejected with the reason.
 // Each camera is calibrated alone (calibrateCamera, k3 fixed), then stereoCalibrate refines
 // intrinsics and extrinsics together starting from those (CALIB_USE_INTRINSIC_GUESS).
-// Throws std::runtime_error when fewer than 3 pairs are usable or the input is invalid.
+// Throws BadInput when fewer than 3 pairs are usable or an image is not 8-bit grey/colour,
+// BadSettings on a board under 2x2 inner corners or a square size not above 0.
 ChessboardCalibration calibrate_chessboard(const std::vector<ChessboardPair> &pairs,
                                            cv::Size board, double square);
 
@@ -54,14 +55,14 @@ struct RectificationCheck {
 
 // Rectifies the corners of each pair (no image remapping: cv::undistortPoints with the R1/P1 and
 // R2/P2 of cv::stereoRectify as compute_rectification calls it) and measures the row difference of matching corners. A good
-// calibration gives a mean |dy| well under a pixel. Throws std::runtime_error when no pair has
+// calibration gives a mean |dy| well under a pixel. Throws BadInput when no pair has
 // the board in both views.
 RectificationCheck check_rectification(const StereoCalibration &calib,
                                        const std::vector<ChessboardPair> &pairs, cv::Size board);
 
 // Reads an OpenCV image list (the format of OpenCV's stereo_calib.xml: a sequence "imagelist" of
 // file names, left and right alternating). Relative names are taken relative to the list's
-// folder. Throws std::runtime_error on a missing/invalid file or an odd count.
+// folder. Throws FileError on a missing/invalid file or an odd count.
 std::vector<std::string> read_image_list(const std::string &path);
 
 } // namespace treestereo

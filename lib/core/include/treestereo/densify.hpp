@@ -74,7 +74,7 @@ struct DensifyStats {
 // better, as StereoMatch's score). `left`, `right`: the rectified views (8-bit grey, or colour
 // as params.order says, the same size); `mask_left`: CV_8U of that size, non-zero = canopy; `seeds`: matches of the
 // same pair (e.g. SIFT's). Fewer than min_seeds seeds: an empty result. Throws
-// std::runtime_error on inconsistent input or parameters out of range.
+// BadInput on inconsistent input, BadSettings on parameters out of range.
 std::vector<StereoMatch> densify_matches(const cv::Mat &left, const cv::Mat &right,
                                          const cv::Mat &mask_left,
                                          const std::vector<StereoMatch> &seeds,

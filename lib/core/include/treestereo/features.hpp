@@ -43,7 +43,7 @@ struct Features {
 };
 
 // A view as 8-bit grey, without copying when it already is. Accepts CV_8UC1/3/4 (BGR/BGRA);
-// anything else throws std::runtime_error.
+// anything else throws BadInput.
 cv::Mat to_gray8(const cv::Mat &view);
 
 // The same for packed pixels whose R, G and B sit where `order` says (RGB, xRGB, ABGR...; its
@@ -54,6 +54,10 @@ cv::Mat to_gray8(const cv::Mat &view, const ChannelOrder &order);
 // `margin` and clipped to the view; the whole view when the mask is empty; an empty rect when
 // the mask has no non-zero pixel.
 cv::Rect detection_region(const cv::Size &view_size, const cv::Mat &mask, int margin);
+
+// Throws BadInput unless `mask` is CV_8UC1 of `view_size`; `where` (the caller) goes in the
+// detail.
+void check_mask(const cv::Mat &mask, const cv::Size &view_size, const char *where);
 
 // Features found but not all described yet (FeatureDetector::locate): the upright engine keeps its
 // pyramid and its keypoints in the detection image's coordinates for describe().
@@ -80,7 +84,7 @@ public:
   explicit FeatureDetector(const DetectParams &params = {});
 
   // `view`: 8-bit grey, BGR or BGRA, possibly a ROI of a side-by-side frame. `mask`: empty, or
-  // CV_8U of the view's size. Throws std::runtime_error on bad input.
+  // CV_8U of the view's size. Throws BadInput on bad input.
   Features detect(const cv::Mat &view, const cv::Mat &mask = cv::Mat()) const;
 
   // The same in two steps, so that a caller can skip the descriptors of keypoints it will not

@@ -24,7 +24,7 @@ enum class MatchMethod {
   CosineNorm, // the paper: k smallest descriptor angles, then the smallest norm difference
 };
 
-// "euclidean" / "cosine-norm"; anything else throws std::runtime_error listing the names.
+// "euclidean" / "cosine-norm"; anything else throws BadSettings listing the names.
 MatchMethod parse_match_method(const std::string &name);
 const char *match_method_name(MatchMethod method);
 
@@ -43,7 +43,8 @@ struct DisparityRange {
   double min = 0, max = 0;
 };
 // Disparities of points between z_near_mm and z_far_mm (0 < near < far) in front of the rectified
-// pair: d = fx * baseline / Z + doffs. Throws std::runtime_error on an invalid geometry/range.
+// pair: d = fx * baseline / Z + doffs. Throws BadInput on an invalid geometry, BadSettings on an
+// empty range.
 DisparityRange disparity_range_for_depth(const StereoGeometry &geometry, double z_near_mm,
                                          double z_far_mm);
 
@@ -173,7 +174,7 @@ struct RefineParams {
   int relocate = 0; // px (0..3): move a match to the neighbour its disparity belongs to; 0 = off
 };
 
-// Throws std::runtime_error when a value is out of range.
+// Throws BadSettings when a value is out of range.
 void check_refine_params(const RefineParams &params);
 
 // Refines `matches` in place and removes the rejected ones; returns how many were removed.
@@ -208,7 +209,7 @@ class StereoMatcher {
 public:
   explicit StereoMatcher(const MatchParams &params);
   // Views: rectified, 8-bit grey/BGR/BGRA (ROIs of a side-by-side frame are fine). Masks: empty
-  // or CV_8U of the view's size (the vegetation). Throws std::runtime_error on bad input.
+  // or CV_8U of the view's size (the vegetation). Throws BadInput on bad input.
   StereoMatchResult run(const cv::Mat &left, const cv::Mat &right, const cv::Mat &mask_left,
                         const cv::Mat &mask_right) const;
   const MatchParams &params() const { return params_; }

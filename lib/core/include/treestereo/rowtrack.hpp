@@ -84,7 +84,7 @@ struct TrackerParams {
   int forward = 1;
 };
 
-// Throws std::runtime_error naming the field when a value is out of range.
+// Throws BadSettings naming the field when a value is out of range.
 void validate(const TrackerParams &params);
 
 // What one frame tells the tracker.
@@ -145,7 +145,7 @@ public:
   explicit TreeTracker(const TrackerParams &params = TrackerParams()); // validates
 
   // Feeds one frame; returns the records of the trees that left the view (or were lost) with
-  // it, in the order they leave (along the direction of travel). Throws std::runtime_error on
+  // it, in the order they leave (along the direction of travel). Throws BadInput on
   // inconsistent input (slopes, a measured_segment out of range, non-finite values).
   std::vector<TreeRecord> update(const TrackFrame &frame);
 

@@ -48,7 +48,7 @@ struct SprayParams {
   std::int64_t speed_window_ns = 250000000;
 };
 
-// Throws std::runtime_error naming the field when a value is out of range.
+// Throws BadSettings naming the field when a value is out of range.
 void validate(const SprayParams &p);
 
 // A section's height range above the ground (m).
@@ -56,7 +56,7 @@ struct SectionRange {
   double lo_m = 0, hi_m = 0;
 };
 
-// "0.4:0.7,0.7:1.0" -> ranges (m). Empty text: none. Throws std::runtime_error naming the text
+// "0.4:0.7,0.7:1.0" -> ranges (m). Empty text: none. Throws BadSettings naming the text
 // and what is wrong (not lo:hi, not a number, lo >= hi, negative).
 std::vector<SectionRange> parse_section_heights(const std::string &text);
 

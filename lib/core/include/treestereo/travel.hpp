@@ -57,7 +57,7 @@ struct RigidParams {
   std::uint64_t seed = 1; // the draws are reproducible
 };
 
-// Throws std::runtime_error naming the field when a value is out of range.
+// Throws BadSettings naming the field when a value is out of range.
 void validate(const RigidParams &params);
 
 struct RigidResult {
@@ -74,8 +74,8 @@ struct RigidResult {
 // least-squares fit (Kabsch, by SVD) on the inliers, repeated while the inlier set changes.
 // `tolerance_mm`: empty, or one inlier distance per correspondence (e.g. growing with depth for
 // stereo points); the fit weighs each inlier by 1 / tolerance^2. Fewer than 3 points, points on
-// one line, or too few inliers: found = false. Throws std::runtime_error on unequal lengths or
-// a non-positive tolerance.
+// one line, or too few inliers: found = false. Throws BadInput on unequal lengths or a
+// non-positive tolerance.
 RigidResult rigid_align(const std::vector<cv::Point3d> &from, const std::vector<cv::Point3d> &to,
                         const RigidParams &params = RigidParams(),
                         const std::vector<double> &tolerance_mm = {});
@@ -119,7 +119,7 @@ struct TravelParams {
   bool refine = true;
 };
 
-// Throws std::runtime_error naming the field when a value is out of range.
+// Throws BadSettings naming the field when a value is out of range.
 void validate(const TravelParams &params);
 
 struct Motion {
@@ -144,8 +144,8 @@ struct Motion {
 // (CV_8UC1, or CV_8UC3 / CV_8UC4 in BGR(A)); `points`: the current frame's 3D points with their
 // left pixels (invalid ones are skipped); `ground`: the current frame's ground plane, if found:
 // travel is then measured along the camera's x axis projected onto it, otherwise along x.
-// found = false when too few points track or agree. Throws std::runtime_error on inconsistent
-// input or parameters.
+// found = false when too few points track or agree. Throws BadInput on inconsistent input,
+// BadSettings on parameters out of range.
 Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, const cv::Mat &left,
                        const cv::Mat &right, const std::vector<PixelPoint> &points,
                        const StereoGeometry &geometry, const TravelParams &params = TravelParams(),
@@ -167,7 +167,7 @@ struct OdometerParams {
   double key_span_mm = 300;
 };
 
-// Throws std::runtime_error naming the field when a value is out of range.
+// Throws BadSettings naming the field when a value is out of range.
 void validate(const OdometerParams &params);
 
 struct OdometryStep {

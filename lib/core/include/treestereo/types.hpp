@@ -5,6 +5,7 @@
 #include <opencv2/core.hpp>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace treestereo {
@@ -33,6 +34,14 @@ struct StereoGeometry {
   double doffs() const { return cx[0] - cx[1]; }
   bool valid() const { return fx > 0 && baseline_mm > 0 && view_size.area() > 0; }
 };
+
+// "fx=1100.000000 baseline_mm=120.000000 view 1296x972": what valid() looks at, for an error's
+// detail.
+inline std::string describe(const StereoGeometry &g)
+{
+  return "fx=" + std::to_string(g.fx) + " baseline_mm=" + std::to_string(g.baseline_mm) +
+         " view " + std::to_string(g.view_size.width) + "x" + std::to_string(g.view_size.height);
+}
 
 // One stereo correspondence in rectified pixels, each view in its own coordinates.
 struct StereoMatch {
