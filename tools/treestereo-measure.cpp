@@ -324,16 +324,8 @@ void write_metrics_json(JsonWriter &w, const GstTreeStereoMetrics &m)
   w.end_array().key("bands").begin_array();
   for (guint i = 0; i < m.n_bands; i++) {
     const GstTreeStereoBand &b = m.bands[i];
-    w.begin_object().field("present", bool(b.present));
-    if (b.present)
-      w.field("top_m", b.top_m)
-          .field("bottom_m", b.bottom_m)
-          .field("left_m", b.left_m)
-          .field("right_m", b.right_m)
-          .field("width_m", b.width_m)
-          .field("depth_m", b.depth_m)
-          .field("fill", b.fill);
-    w.end_object();
+    write_band(w, RecordBand{bool(b.present), b.top_m, b.bottom_m, b.left_m, b.right_m,
+                             b.width_m, b.depth_m, b.fill});
   }
   w.end_array()
       .field("n_points", m.n_points)

@@ -6,6 +6,20 @@
 
 namespace treestereo {
 
+JsonWriter &write_band(JsonWriter &w, const RecordBand &b)
+{
+  w.begin_object().field("present", b.present);
+  if (b.present)
+    w.field("top_m", b.top_m)
+        .field("bottom_m", b.bottom_m)
+        .field("left_m", b.left_m)
+        .field("right_m", b.right_m)
+        .field("width_m", b.width_m)
+        .field("depth_m", b.depth_m)
+        .field("fill", b.fill);
+  return w.end_object();
+}
+
 std::string to_json(const TreeRecord &r)
 {
   std::ostringstream s;
@@ -28,18 +42,8 @@ std::string to_json(const TreeRecord &r)
   if (r.has_depth) {
     w.field("thickness_m", r.thickness_m);
     w.key("bands").begin_array();
-    for (const RecordBand &b : r.bands) {
-      w.begin_object().field("present", b.present);
-      if (b.present)
-        w.field("top_m", b.top_m)
-            .field("bottom_m", b.bottom_m)
-            .field("left_m", b.left_m)
-            .field("right_m", b.right_m)
-            .field("width_m", b.width_m)
-            .field("depth_m", b.depth_m)
-            .field("fill", b.fill);
-      w.end_object();
-    }
+    for (const RecordBand &b : r.bands)
+      write_band(w, b);
     w.end_array();
   }
   w.field("frames", r.frames).field("frames_seen", r.frames_seen);
