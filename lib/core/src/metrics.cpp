@@ -4,6 +4,8 @@
 #include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
 
+#include "mask_near.hpp"
+
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -47,17 +49,6 @@ struct CanopyPoint {
   double u, v; // left-view pixel
 };
 
-bool in_mask_near(const cv::Mat &mask, int u, int v)
-{
-  for (int dv = -1; dv <= 1; ++dv)
-    for (int du = -1; du <= 1; ++du) {
-      const int x = u + du, y = v + dv;
-      if (x >= 0 && y >= 0 && x < mask.cols && y < mask.rows && mask.at<uchar>(y, x))
-        return true;
-    }
-  return false;
-}
-
 std::vector<CanopyPoint> canopy_points(const std::vector<Point3> &points, const cv::Mat &mask,
                                        const StereoGeometry &g, bool in_mask_only)
 {
@@ -68,7 +59,7 @@ std::vector<CanopyPoint> canopy_points(const std::vector<Point3> &points, const 
     if (!p.valid || !(p.z > 0.0f) || !std::isfinite(p.x) || !std::isfinite(p.y))
       continue;
     const double u = g.fx * p.x / p.z + g.cx[LEFT], v = fy * p.y / p.z + g.cy;
-    if (in_mask_only && !in_mask_near(mask, int(std::lround(u)), int(std::lround(v))))
+    if (in_mask_only && !on_mask_or_beside(mask, int(std::lround(u)), int(std::lround(v))))
       continue;
     out.push_back({double(p.z), u, v});
   }

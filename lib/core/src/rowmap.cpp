@@ -3,6 +3,8 @@
 #include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
 
+#include "mask_near.hpp"
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -51,17 +53,6 @@ void require(bool ok, const char *field, const char *range)
 {
   if (!ok)
     throw BadSettings(std::string("row map parameter ") + field + " out of range: " + range);
-}
-
-bool on_mask(const cv::Mat &mask, int u, int v)
-{
-  for (int dv = -1; dv <= 1; ++dv)
-    for (int du = -1; du <= 1; ++du) {
-      const int x = u + du, y = v + dv;
-      if (x >= 0 && y >= 0 && x < mask.cols && y < mask.rows && mask.at<uchar>(y, x))
-        return true;
-    }
-  return false;
 }
 
 std::string fixed(double v, int digits)
@@ -176,7 +167,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         !std::isfinite(q.px.x) || !std::isfinite(q.px.y))
       continue;
     const int u = int(std::lround(q.px.x)), v = int(std::lround(q.px.y));
-    if (u < 0 || v < 0 || u >= W || v >= H || !on_mask(mask, u, v))
+    if (u < 0 || v < 0 || u >= W || v >= H || !on_mask_or_beside(mask, u, v))
       continue;
     const cv::Point3d P(q.p.x, q.p.y, q.p.z);
     pts.push_back({P.x, P.z, ground.height_of(P), u, v});
