@@ -12,6 +12,16 @@ GST_DEBUG_CATEGORY_STATIC(treestereo_common_debug);
 
 namespace treestereo::gst {
 
+void add_filter_pad_templates(GstElementClass *klass, const char *caps)
+{
+  GstCaps *c = gst_caps_from_string(caps);
+  gst_element_class_add_pad_template(klass,
+                                     gst_pad_template_new("sink", GST_PAD_SINK, GST_PAD_ALWAYS, c));
+  gst_element_class_add_pad_template(klass,
+                                     gst_pad_template_new("src", GST_PAD_SRC, GST_PAD_ALWAYS, c));
+  gst_caps_unref(c);
+}
+
 static void ensure_debug_category()
 {
   static gsize once = 0;

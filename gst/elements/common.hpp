@@ -30,6 +30,10 @@ namespace treestereo::gst {
 /* Colour only: what needs a vegetation index. */
 #define TREESTEREO_COLOR_FORMATS "{ RGB, BGR, RGBx, BGRx, xRGB, xBGR, RGBA, BGRA, ARGB, ABGR }"
 
+/* Adds a filter's two pads (always) to @klass: "sink" and "src", both with @caps (e.g.
+ * GST_VIDEO_CAPS_MAKE(TREESTEREO_VIDEO_FORMATS)). */
+void add_filter_pad_templates(GstElementClass *klass, const char *caps);
+
 /* Where R, G and B sit in a packed pixel, and how many bytes it has. */
 struct PixelLayout {
   int channels = 0;

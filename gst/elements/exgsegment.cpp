@@ -164,10 +164,6 @@ GST_ELEMENT_REGISTER_DEFINE(exgsegment, "exgsegment", GST_RANK_NONE, GST_TYPE_EX
 
 #define CAPS GST_VIDEO_CAPS_MAKE(TREESTEREO_COLOR_FORMATS)
 
-static GstStaticPadTemplate sink_template =
-    GST_STATIC_PAD_TEMPLATE("sink", GST_PAD_SINK, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
-static GstStaticPadTemplate src_template =
-    GST_STATIC_PAD_TEMPLATE("src", GST_PAD_SRC, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
 
 /* The values are lib's VegIndex / KeepMode, the nicks lib's names (veg_index_name ...). */
 static GType gst_exg_segment_index_get_type(void)
@@ -204,12 +200,6 @@ static GType gst_exg_segment_keep_get_type(void)
     g_once_init_leave(&type, t);
   }
   return type;
-}
-
-static Settings snapshot(GstExgSegment *self)
-{
-  std::lock_guard<std::mutex> g(self->state->lock);
-  return self->state->settings;
 }
 
 /* (Re)builds the per-view segmenters when the settings or the channel order changed. */
@@ -290,7 +280,7 @@ static GstFlowReturn process(GstExgSegment *self, GstBuffer *buf)
 {
   State *st = self->state;
   GstVideoFilter *filter = GST_VIDEO_FILTER(self);
-  const Settings s = snapshot(self);
+  const Settings s = settings_snapshot(self);
   ensure_segmenters(self, s);
 
   /* before mapping: a mapped frame holds a ref, and a buffer with two refs takes no meta */
@@ -396,8 +386,7 @@ static void gst_exg_segment_class_init(GstExgSegmentClass *klass)
   props.boolean("post-messages", "Post messages", "Post an exgsegment element message per frame",
                 DEFAULT_POST_MESSAGES, TS_FIELD(post_messages));
 
-  gst_element_class_add_static_pad_template(element_class, &sink_template);
-  gst_element_class_add_static_pad_template(element_class, &src_template);
+  add_filter_pad_templates(element_class, CAPS);
   gst_element_class_set_static_metadata(
       element_class, "Vegetation segmentation", "Filter/Analyzer/Video",
       "Finds the canopy by its colour in each view and describes its shape (area, centroid, "

@@ -59,6 +59,14 @@ private:
   std::mutex *mutex_;
 };
 
+/* A copy of the settings of an element that keeps them in self->state (settings, lock), taken
+ * under their lock: what one buffer is processed with. */
+template <typename Self> auto settings_snapshot(Self *self)
+{
+  std::lock_guard<std::mutex> g(self->state->lock);
+  return self->state->settings;
+}
+
 template <typename S> class PropertyTable {
 public:
   using Setter = std::function<void(S &, const GValue *)>;

@@ -192,16 +192,6 @@ static GType gst_sift_match_method_get_type(void)
 }
 
 #define CAPS GST_VIDEO_CAPS_MAKE(TREESTEREO_VIDEO_FORMATS)
-static GstStaticPadTemplate sink_template =
-    GST_STATIC_PAD_TEMPLATE("sink", GST_PAD_SINK, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
-static GstStaticPadTemplate src_template =
-    GST_STATIC_PAD_TEMPLATE("src", GST_PAD_SRC, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
-
-static Settings snapshot(GstSiftMatch *self)
-{
-  std::lock_guard<std::mutex> g(self->state->lock);
-  return self->state->settings;
-}
 
 /* scale=0: automatic (SiftmatchPreset::auto_scale of the view's width). */
 static double resolve_scale(double scale, int view_width)
@@ -373,7 +363,7 @@ static void match_buffer(GstSiftMatch *self, GstBuffer *buf, const GstTreeStereo
 static GstFlowReturn gst_sift_match_transform_ip(GstBaseTransform *trans, GstBuffer *buf)
 {
   GstSiftMatch *self = GST_SIFT_MATCH(trans);
-  const Settings s = snapshot(self);
+  const Settings s = settings_snapshot(self);
   const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
   if (!gm) {
     treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
@@ -544,8 +534,7 @@ static void gst_sift_match_class_init(GstSiftMatchClass *klass)
   props.boolean("post-messages", "Post messages", "Post a siftmatch element message per frame",
                 DEFAULT_POST_MESSAGES, TS_FIELD(post_messages));
 
-  gst_element_class_add_static_pad_template(element_class, &sink_template);
-  gst_element_class_add_static_pad_template(element_class, &src_template);
+  add_filter_pad_templates(element_class, CAPS);
   gst_element_class_set_static_metadata(
       element_class, "SIFT stereo matcher", "Filter/Analyzer/Video",
       "Matches SIFT features between the rectified views of a side-by-side stereo frame under "

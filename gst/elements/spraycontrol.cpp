@@ -173,10 +173,6 @@ G_DEFINE_TYPE(GstSprayControl, gst_spray_control, GST_TYPE_BASE_TRANSFORM);
 GST_ELEMENT_REGISTER_DEFINE(spraycontrol, "spraycontrol", GST_RANK_NONE, GST_TYPE_SPRAY_CONTROL);
 
 #define CAPS GST_VIDEO_CAPS_MAKE(TREESTEREO_VIDEO_FORMATS)
-static GstStaticPadTemplate sink_template =
-    GST_STATIC_PAD_TEMPLATE("sink", GST_PAD_SINK, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
-static GstStaticPadTemplate src_template =
-    GST_STATIC_PAD_TEMPLATE("src", GST_PAD_SRC, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
 
 static void post_commands(GstSprayControl *self, const std::vector<SectionCommand> &commands,
                           bool post, bool fallback)
@@ -569,8 +565,7 @@ static void gst_spray_control_class_init(GstSprayControlClass *klass)
                "section's valve timeline under it (NULL: none)",
                TS_FIELD(timeline_location), kRwReady);
 
-  gst_element_class_add_static_pad_template(element_class, &sink_template);
-  gst_element_class_add_static_pad_template(element_class, &src_template);
+  add_filter_pad_templates(element_class, CAPS);
   gst_element_class_set_static_metadata(
       element_class, "Spray control", "Filter/Analyzer/Video",
       "Valve commands for the sprayer's nozzle sections from the row canopy map, timed for the "

@@ -227,16 +227,6 @@ G_DEFINE_TYPE(GstStereoDepth, gst_stereo_depth, GST_TYPE_BASE_TRANSFORM);
 GST_ELEMENT_REGISTER_DEFINE(stereodepth, "stereodepth", GST_RANK_NONE, GST_TYPE_STEREO_DEPTH);
 
 #define CAPS GST_VIDEO_CAPS_MAKE(TREESTEREO_VIDEO_FORMATS)
-static GstStaticPadTemplate sink_template =
-    GST_STATIC_PAD_TEMPLATE("sink", GST_PAD_SINK, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
-static GstStaticPadTemplate src_template =
-    GST_STATIC_PAD_TEMPLATE("src", GST_PAD_SRC, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
-
-static Settings snapshot(GstStereoDepth *self)
-{
-  std::lock_guard<std::mutex> g(self->state->lock);
-  return self->state->settings;
-}
 
 /* Says once why densify=TRUE does nothing on this stream. The same causes stop the 3D canopy
  * (canopy_depth_of() leaves them to this one warning), so with canopy on it says both. */
@@ -510,7 +500,7 @@ static void attach_and_post(GstStereoDepth *self, GstBuffer *buf, const Settings
 static GstFlowReturn gst_stereo_depth_transform_ip(GstBaseTransform *trans, GstBuffer *buf)
 {
   GstStereoDepth *self = GST_STEREO_DEPTH(trans);
-  const Settings s = snapshot(self);
+  const Settings s = settings_snapshot(self);
   const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
   if (!gm) {
     treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
@@ -661,8 +651,7 @@ static void gst_stereo_depth_class_init(GstStereoDepthClass *klass)
              "ground=rig: the camera's pitch (degrees, positive = looking down)", -80.0, 80.0,
              cz.camera_pitch_deg, TS_FIELD(zone.camera_pitch_deg));
 
-  gst_element_class_add_static_pad_template(element_class, &sink_template);
-  gst_element_class_add_static_pad_template(element_class, &src_template);
+  add_filter_pad_templates(element_class, CAPS);
   gst_element_class_set_static_metadata(
       element_class, "Stereo depth", "Filter/Analyzer/Video",
       "3D points (mm, rectified-left frame) from stereo matches or dense SGBM, cleaned by a "

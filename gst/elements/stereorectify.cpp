@@ -144,12 +144,6 @@ static bool infos_match(const GstVideoInfo *a, const GstVideoInfo *b)
          GST_VIDEO_INFO_HEIGHT(a) == GST_VIDEO_INFO_HEIGHT(b);
 }
 
-static Settings snapshot(GstStereoRectify *self)
-{
-  std::lock_guard<std::mutex> g(self->state->lock);
-  return self->state->settings;
-}
-
 /* The message for a stereorectify without a calibration file. */
 static const char *const kNoCalibration =
     "stereorectify has no calibration: set the calibration property to an OpenCV YAML/XML file "
@@ -186,7 +180,7 @@ static gboolean gst_stereo_rectify_start(GstAggregator *agg)
     std::lock_guard<std::mutex> g(st->lock);
     st->dropped = st->paired = 0;
   }
-  const Settings s = snapshot(self);
+  const Settings s = settings_snapshot(self);
   try {
     ensure_calibration(self, s);
   } catch (const std::exception &e) {
@@ -281,7 +275,7 @@ static gboolean gst_stereo_rectify_negotiated_src_caps(GstAggregator *agg, GstCa
   State *st = self->state;
   if (!gst_video_info_from_caps(&st->out_info, caps))
     return FALSE;
-  const Settings s = snapshot(self);
+  const Settings s = settings_snapshot(self);
   try {
     configure_rectification(self, s);
   } catch (const std::exception &e) {
@@ -491,7 +485,7 @@ static GstFlowReturn gst_stereo_rectify_aggregate(GstAggregator *agg, gboolean t
   }
 
   {
-    const Settings s = snapshot(self);
+    const Settings s = settings_snapshot(self);
     GstCaps *current = gst_pad_get_current_caps(GST_AGGREGATOR_SRC_PAD(agg));
     GstVideoInfo cur;
     const bool caps_ok = current && gst_video_info_from_caps(&cur, current) &&

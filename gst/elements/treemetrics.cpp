@@ -249,16 +249,6 @@ G_DEFINE_TYPE(GstTreeMetrics, gst_tree_metrics, GST_TYPE_BASE_TRANSFORM);
 GST_ELEMENT_REGISTER_DEFINE(treemetrics, "treemetrics", GST_RANK_NONE, GST_TYPE_TREE_METRICS);
 
 #define CAPS GST_VIDEO_CAPS_MAKE(TREESTEREO_VIDEO_FORMATS)
-static GstStaticPadTemplate sink_template =
-    GST_STATIC_PAD_TEMPLATE("sink", GST_PAD_SINK, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
-static GstStaticPadTemplate src_template =
-    GST_STATIC_PAD_TEMPLATE("src", GST_PAD_SRC, GST_PAD_ALWAYS, GST_STATIC_CAPS(CAPS));
-
-static Settings snapshot(GstTreeMetrics *self)
-{
-  std::lock_guard<std::mutex> g(self->state->lock);
-  return self->state->settings;
-}
 
 /* Once per run: which upstream element is missing. The frame still gets tree-present=false. */
 static void warn_missing(GstTreeMetrics *self, GstBuffer *buf, bool veg)
@@ -278,7 +268,7 @@ static void post_records(GstTreeMetrics *self, const std::vector<TreeRecord> &re
                          const GstTreeStereoTimes *times)
 {
   State *st = self->state;
-  const bool keep = !snapshot(self).row_map_location.empty();
+  const bool keep = !settings_snapshot(self).row_map_location.empty();
   for (const TreeRecord &r : records) {
     GST_DEBUG_OBJECT(self, "tree %d leaves: %.3f..%.3f m, %d frames%s", r.id, r.start_m, r.end_m,
                      r.frames, r.complete ? "" : " (incomplete)");
@@ -535,7 +525,7 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
 {
   GstTreeMetrics *self = GST_TREE_METRICS(trans);
   State *st = self->state;
-  const Settings s = snapshot(self);
+  const Settings s = settings_snapshot(self);
   const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
   if (!gm) {
     treestereo::gst::post_missing_meta(GST_ELEMENT(self), GST_MESSAGE_ERROR, buf,
@@ -652,7 +642,7 @@ static gboolean gst_tree_metrics_sink_event(GstBaseTransform *trans, GstEvent *e
   case GST_EVENT_EOS: {
     // The trees still in view are posted, and the row map written, before EOS goes on.
     finish_trees(self);
-    const Settings s = snapshot(self);
+    const Settings s = settings_snapshot(self);
     if (!s.row_map_location.empty())
       write_row_map(self, s.row_map_location);
     break;
@@ -723,8 +713,7 @@ static void gst_tree_metrics_class_init(GstTreeMetricsClass *klass)
              "starts (the stream's first frame with a canopy)",
              0.005, 10.0, DEFAULT_ROW_MAP_BIN, TS_FIELD(row_map_bin));
 
-  gst_element_class_add_static_pad_template(element_class, &sink_template);
-  gst_element_class_add_static_pad_template(element_class, &src_template);
+  add_filter_pad_templates(element_class, CAPS);
   gst_element_class_set_static_metadata(
       element_class, "Tree metrics", "Filter/Analyzer/Video",
       "Measures the tree canopy (distance, height, width, thickness, area, perimeter, "

@@ -143,16 +143,6 @@ GST_ELEMENT_REGISTER_DEFINE(treeoverlay, "treeoverlay", GST_RANK_NONE, GST_TYPE_
 
 #define OVERLAY_CAPS GST_VIDEO_CAPS_MAKE(TREESTEREO_COLOR_FORMATS)
 
-static GstStaticPadTemplate sink_template =
-    GST_STATIC_PAD_TEMPLATE("sink", GST_PAD_SINK, GST_PAD_ALWAYS, GST_STATIC_CAPS(OVERLAY_CAPS));
-static GstStaticPadTemplate src_template =
-    GST_STATIC_PAD_TEMPLATE("src", GST_PAD_SRC, GST_PAD_ALWAYS, GST_STATIC_CAPS(OVERLAY_CAPS));
-
-static Settings snapshot(GstTreeOverlay *self)
-{
-  std::lock_guard<std::mutex> g(self->state->lock);
-  return self->state->settings;
-}
 
 /* Halves (or doubles) a width field: an int or an int range. */
 static void scale_width(GstStructure *s, bool halve)
@@ -215,7 +205,7 @@ static GstCaps *gst_tree_overlay_transform_caps(GstBaseTransform *trans, GstPadD
                                                 GstCaps *caps, GstCaps *filter)
 {
   GstTreeOverlay *self = GST_TREE_OVERLAY(trans);
-  GstCaps *out = snapshot(self).views == GST_TREE_OVERLAY_VIEWS_LEFT
+  GstCaps *out = settings_snapshot(self).views == GST_TREE_OVERLAY_VIEWS_LEFT
                      ? left_view_caps(caps, direction)
                      : gst_caps_ref(caps);
   if (filter) {
@@ -360,7 +350,7 @@ static void draw_map_strip(State *st, GstBuffer *metas, cv::Mat &image, int n_vi
 
 static GstFlowReturn draw(GstTreeOverlay *self, GstBuffer *metas, cv::Mat image, int n_views)
 {
-  const Settings s = snapshot(self);
+  const Settings s = settings_snapshot(self);
   const ChannelOrder order = self->state->order;
   return treestereo::gst::guarded(GST_ELEMENT(self), GST_FLOW_ERROR, [&] {
     draw_overlay(image, order, scene_from_metas(metas, n_views), s.style);
@@ -467,8 +457,7 @@ static void gst_tree_overlay_class_init(GstTreeOverlayClass *klass)
                 "stereodepth's canopy meta)",
                 FALSE, TS_FIELD(draw_map));
 
-  gst_element_class_add_static_pad_template(element_class, &sink_template);
-  gst_element_class_add_static_pad_template(element_class, &src_template);
+  add_filter_pad_templates(element_class, OVERLAY_CAPS);
   gst_element_class_set_static_metadata(
       element_class, "Tree overlay", "Filter/Effect/Video",
       "Draws the canopy contour and box, the stereo matches coloured by depth, the band profile "

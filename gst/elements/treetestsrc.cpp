@@ -162,12 +162,6 @@ static double m_or_default(double mm)
   return std::isnan(mm) ? -1.0 : mm / 1000.0;
 }
 
-static Settings snapshot(GstTreeTestSrc *self)
-{
-  std::lock_guard<std::mutex> g(self->state->lock);
-  return self->state->settings;
-}
-
 static GstCaps *gst_tree_test_src_fixate(GstBaseSrc *src, GstCaps *caps)
 {
   caps = gst_caps_make_writable(caps);
@@ -213,7 +207,7 @@ static gboolean gst_tree_test_src_set_caps(GstBaseSrc *src, GstCaps *caps)
   if (!gst_video_info_from_caps(&st->info, caps))
     return FALSE;
   st->renderer.reset();
-  const Settings s = snapshot(self);
+  const Settings s = settings_snapshot(self);
   return treestereo::gst::guarded(GST_ELEMENT(self), FALSE, [&] {
     ensure_renderer(self, s);
     return TRUE;
@@ -331,7 +325,7 @@ static GstFlowReturn gst_tree_test_src_fill(GstPushSrc *psrc, GstBuffer *buf)
                     nullptr, "format was not negotiated");
     return GST_FLOW_NOT_NEGOTIATED;
   }
-  const Settings s = snapshot(self);
+  const Settings s = settings_snapshot(self);
   const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
     ensure_renderer(self, s);
     cv::Mat rgb;
