@@ -114,6 +114,7 @@
 #include "treestereo/rowmap.hpp"
 #include "treestereo/rowtrack.hpp"
 #include "treestereo/travel.hpp"
+#include "treestereo/worker.hpp"
 
 #include <gst/base/gstbasetransform.h>
 
@@ -121,6 +122,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -220,6 +222,23 @@ struct State {
   bool info_set = false;
   Along along;
   bool warned_travel = false; // the travel estimate could not run on this stream (said once)
+  // Runs a frame's travel (frame_travel: the views' tracks, along and warned_travel) while the
+  // streaming thread measures the canopy: the two share nothing, and on a sequential chain the
+  // other core is idle meanwhile.
+  Worker travel_worker;
+};
+
+/* Waits for a job's end when it goes out of scope, also when an exception leaves it. */
+template <class T> struct WaitFor {
+  std::future<T> &job;
+  explicit WaitFor(std::future<T> &f) : job(f) {}
+  WaitFor(const WaitFor &) = delete;
+  WaitFor &operator=(const WaitFor &) = delete;
+  ~WaitFor()
+  {
+    if (job.valid())
+      job.wait();
+  }
 };
 
 /* GstTreeStereoMetrics that frees its bands. */
@@ -547,6 +566,13 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
   std::vector<TreeRecord> records;
   const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
     const StereoGeometry geometry = treestereo::gst::geometry_from_meta(gm);
+    // The rig's travel along the row, measured beside the canopy; a frame whose travel is
+    // unknown keeps the position.
+    double travel_mm = 0;
+    std::future<GstTreeStereoTravelSource> travel = st->travel_worker.run(
+        [&] { return frame_travel(self, buf, s, geometry, canopy, pm, travel_mm); });
+    // Whatever happens below, the job reads this buffer and the state until it is done.
+    const WaitFor waited(travel);
     TreeMetrics m; // no tree unless a silhouette and the points are there
     if (silhouette && pm) {
       MetricsParams p;
@@ -562,10 +588,7 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
     treestereo::gst::metrics_to_gst(m, &raw.m, mode);
     treestereo::gst::metrics_to_gst(st->smoother.update(m), &smoothed.m, mode);
 
-    // The rig's travel along the row; a frame whose travel is unknown keeps the position.
-    double travel_mm = 0;
-    const GstTreeStereoTravelSource source =
-        frame_travel(self, buf, s, geometry, canopy, pm, travel_mm);
+    const GstTreeStereoTravelSource source = travel.get();
     st->along.position_mm += travel_mm;
     for (GstTreeStereoMetrics *out : {&raw.m, &smoothed.m}) {
       out->travel_m = travel_mm * 1e-3;

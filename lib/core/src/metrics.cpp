@@ -67,10 +67,11 @@ std::vector<CanopyPoint> canopy_points(const std::vector<Point3> &points, const 
 }
 
 // The silhouette area (pixels) nearest to each point: its Voronoi cell within the mask. Only the
-// mask's bounding box is labelled (the points project into it, within a pixel, and clamp to it).
-std::vector<double> area_weights(const std::vector<CanopyPoint> &pts, const cv::Mat &full_mask)
+// mask's bounding box `box` is labelled (the points project into it, within a pixel, and clamp
+// to it).
+std::vector<double> area_weights(const std::vector<CanopyPoint> &pts, const cv::Mat &full_mask,
+                                 const cv::Rect &box)
 {
-  const cv::Rect box = cv::boundingRect(full_mask);
   const cv::Mat mask = full_mask(box);
   cv::Mat seeds(mask.size(), CV_8U, cv::Scalar(255));
   std::vector<cv::Point> at(pts.size());
@@ -526,7 +527,7 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
   m.matches = points.size();
   std::vector<double> w;
   if (p.area_weighted) {
-    w = area_weights(pts, left.mask);
+    w = area_weights(pts, left.mask, e.bbox);
     const std::vector<double> q = weighted_percentiles(z, w, {50.0, 5.0, 95.0});
     m.distance_m = q[0] * kMmToM;
     m.thickness_m = (q[2] - q[1]) * kMmToM;
@@ -561,8 +562,10 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
   if (c.round) {
     m.centroid_m = cv::Point3d(c.xc, c.yc, c.zc) * kMmToM;
   } else {
-    const cv::Moments mo = cv::moments(left.mask, true);
-    const double tcx = (mo.m10 / mo.m00 - g.cx[LEFT]) / g.fx, tcy = (mo.m01 / mo.m00 - g.cy) / fy;
+    // Over the bounding box alone: the rest of the view holds no silhouette.
+    const cv::Moments mo = cv::moments(left.mask(e.bbox), true);
+    const double tcx = (mo.m10 / mo.m00 + e.bbox.x - g.cx[LEFT]) / g.fx,
+                 tcy = (mo.m01 / mo.m00 + e.bbox.y - g.cy) / fy;
     m.centroid_m = cv::Point3d(tcx * c.z_ext, tcy * c.z_ext, c.z_ext) * kMmToM;
   }
 
