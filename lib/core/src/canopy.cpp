@@ -1055,6 +1055,16 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
                       "more.",
                       "canopy_depth: coarse_points = " + std::to_string(p.coarse_points));
   CanopyDepth out;
+  // Colour views in grey once: both densifications and the seam test below read them, and each
+  // would convert its crops again (cvtColor is per pixel: a crop of the grey view is the grey
+  // crop). Views that do not fit each other or their layout go on as given, for the checks
+  // downstream to name.
+  cv::Mat left_grey = left, right_grey = right;
+  if (!left.empty() && left.size() == right.size() && left.type() == right.type() &&
+      left.depth() == CV_8U && left.channels() > 1 && left.channels() == p.grid.order.channels) {
+    left_grey = to_gray8(left, p.grid.order);
+    right_grey = to_gray8(right, p.grid.order);
+  }
   // 1. Everything green, coarsely: the seeds and a coarse grid, triangulated without the
   // outlier cut (the next row is no outlier here, it is what the canopy is told from).
   DensifyParams coarse = p.grid;
@@ -1063,7 +1073,7 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
   coarse.edge_band = 0;
   DensifyStats coarse_stats;
   const std::vector<StereoMatch> grid0 =
-      densify_matches(left, right, vegetation.mask, seeds, coarse, &coarse_stats);
+      densify_matches(left_grey, right_grey, vegetation.mask, seeds, coarse, &coarse_stats);
   out.coarse = grid0.size();
   DepthParams range = p.filter;
   range.outlier_k = 0;
@@ -1090,7 +1100,8 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
   CanopyParams cp = p.canopy;
   if (cp.sample_spacing_px <= 0 && coarse_stats.step > 0)
     cp.sample_spacing_px = coarse_stats.step;
-  out.canopy = select_canopy(vegetation.mask, pts, g, cp, left, right, p.grid.order, &vegetation);
+  out.canopy =
+      select_canopy(vegetation.mask, pts, g, cp, left_grey, right_grey, p.grid.order, &vegetation);
 
   // 2. The canopy alone, densely: seeded by the matches on it.
   out.matches = seeds;
@@ -1106,7 +1117,7 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
         if (out.canopy.classes[seeds.size() + i] == PointClass::Canopy)
           on.push_back(grid0[i]);
     const std::vector<StereoMatch> grid =
-        densify_matches(left, right, out.canopy.silhouette.mask, on, p.grid);
+        densify_matches(left_grey, right_grey, out.canopy.silhouette.mask, on, p.grid);
     out.matches.insert(out.matches.end(), grid.begin(), grid.end());
   }
 
