@@ -2,6 +2,8 @@
 #include "treestereo/depth.hpp"
 #include "treestereo/stats.hpp"
 
+#include "typed_error.hpp"
+
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -9,6 +11,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 
 using namespace treestereo;
@@ -343,4 +346,27 @@ TEST(DenseDepth, InconsistentInputThrows)
   const DenseResult r = dense_depth(a, a, cv::Mat(), cv::Rect(200, 200, 10, 10), g, DenseParams{});
   EXPECT_TRUE(r.box.empty());
   EXPECT_TRUE(r.points.empty());
+}
+
+// Every lib function that takes a geometry refuses one that is not valid with the same typed
+// error: a sentence naming what needs it, the values in its detail (require_valid()).
+TEST(Geometry, AnInvalidGeometryIsRefusedNamingWhatNeedsIt)
+{
+  StereoGeometry none;
+  StereoGeometry inf = make_rig().g;
+  inf.baseline_mm = std::numeric_limits<double>::infinity();
+  for (const StereoGeometry &g : {none, inf}) {
+    expect_typed_error<BadInput>([&] { disparity_to_depth_matrix(g); }, "depth from disparity");
+    expect_typed_error<BadInput>([&] { triangulate_matches({}, g, DepthParams()); },
+                                 "triangulation");
+    expect_typed_error<BadInput>([&] { disparity_window(g, 1000, 5000); },
+                                 "the disparity window");
+  }
+  try {
+    disparity_window(inf, 1000, 5000);
+  } catch (const BadInput &e) {
+    EXPECT_NE(std::string(e.what()).find("The stereo geometry is not valid"), std::string::npos);
+    EXPECT_NE(e.detail().find("disparity_window: fx=1"), std::string::npos) << e.detail();
+    EXPECT_NE(e.detail().find("baseline_mm=inf"), std::string::npos) << e.detail();
+  }
 }

@@ -423,10 +423,7 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
                            const cv::Mat &right, ChannelOrder order, const Silhouette *colour)
 {
   validate(p);
-  if (!g.valid())
-    throw BadInput("The stereo geometry is not valid: the canopy needs a calibrated, rectified "
-                   "pair (fx and baseline above 0, a view size).",
-                   "select_canopy: " + describe(g));
+  require_valid(g, "the canopy", "select_canopy");
   if (vegetation.type() != CV_8U || vegetation.size() != g.view_size)
     throw BadInput("The vegetation mask does not fit the view: give an 8-bit mask of the view's "
                    "size.",

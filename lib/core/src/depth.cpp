@@ -16,16 +16,6 @@ namespace treestereo {
 
 namespace {
 
-void check_geometry(const StereoGeometry &g)
-{
-  if (!g.valid() || !std::isfinite(g.fx) || !std::isfinite(g.baseline_mm))
-    throw BadInput("stereo geometry is not valid (fx=" + std::to_string(g.fx) +
-                             " px, baseline=" + std::to_string(g.baseline_mm) +
-                             " mm, view " + std::to_string(g.view_size.width) + "x" +
-                             std::to_string(g.view_size.height) +
-                             "): rectify the pair with a calibration first");
-}
-
 void check_params(const DepthParams &p)
 {
   if (!(p.min_depth_mm > 0.0) || !(p.max_depth_mm > p.min_depth_mm) ||
@@ -90,7 +80,7 @@ bool triangulate_point_q(const cv::Matx44d &Q, double xl, double yl, double disp
 
 cv::Matx44d disparity_to_depth_matrix(const StereoGeometry &g)
 {
-  check_geometry(g);
+  require_valid(g, "depth from disparity", "disparity_to_depth_matrix");
   // cv::stereoRectify's layout with Tx = -baseline (right camera on the +x side).
   const double b = g.baseline_mm;
   return cv::Matx44d(1, 0, 0, -g.cx[LEFT],
@@ -142,7 +132,7 @@ DepthStats filter_depths(std::vector<Point3> &points, const DepthParams &params)
 DepthResult triangulate_matches(const std::vector<StereoMatch> &matches,
                                 const StereoGeometry &geometry, const DepthParams &params)
 {
-  check_geometry(geometry);
+  require_valid(geometry, "triangulation", "triangulate_matches");
   check_params(params);
   DepthResult r;
   r.points.resize(matches.size());
@@ -162,7 +152,7 @@ DepthResult triangulate_matches(const std::vector<StereoMatch> &matches,
 
 cv::Vec2i disparity_window(const StereoGeometry &g, double min_depth_mm, double max_depth_mm)
 {
-  check_geometry(g);
+  require_valid(g, "the disparity window", "disparity_window");
   DepthParams p;
   p.min_depth_mm = min_depth_mm;
   p.max_depth_mm = max_depth_mm;
@@ -195,7 +185,7 @@ cv::Mat to_gray(const cv::Mat &m, const char *what)
 void check_dense_input(const cv::Mat &left, const cv::Mat &right, const cv::Mat &mask,
                        const StereoGeometry &g, const DenseParams &p)
 {
-  check_geometry(g);
+  require_valid(g, "dense matching", "dense_depth");
   check_params(p.filter);
   if (left.empty() || right.empty() || left.size() != right.size() ||
       left.size() != g.view_size)

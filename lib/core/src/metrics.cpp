@@ -23,9 +23,7 @@ constexpr double kMmToM = 1e-3;
 
 void check_input(const Silhouette &s, const StereoGeometry &g, const MetricsParams &p)
 {
-  if (!g.valid())
-    throw BadInput("tree metrics: the stereo geometry is not valid (no focal length, "
-                             "baseline or view size): rectify with a calibration first");
+  require_valid(g, "the tree's measurements", "compute_tree_metrics");
   if (s.present && !s.mask.empty() && (s.mask.size() != g.view_size || s.mask.type() != CV_8UC1))
     throw BadInput("tree metrics: the silhouette mask must be CV_8U of the view size " +
                              std::to_string(g.view_size.width) + "x" +

@@ -267,9 +267,7 @@ OverlayScale overlay_scale(cv::Size view)
 
 BandSegment band_segment(const Band &band, const StereoGeometry &g, double depth_m)
 {
-  if (!g.valid())
-    throw std::runtime_error("overlay: cannot place bands without a valid stereo geometry "
-                             "(focal length, baseline and view size must be > 0)");
+  require_valid(g, "placing the bands", "band_segment");
   if (!known_depth(depth_m))
     throw std::runtime_error("overlay: band projection depth must be > 0 m");
   const double fy = g.fy > 0 ? g.fy : g.fx;

@@ -136,8 +136,7 @@ RowMapCell RowMap::cell(long bin, int band) const
 void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &points,
                        const StereoGeometry &g, const GroundPlane &ground, double position_mm)
 {
-  if (!g.valid())
-    throw BadInput("row map: the stereo geometry is not valid");
+  require_valid(g, "the row map", "RowMap::add_frame");
   if (mask.type() != CV_8U || mask.size() != g.view_size)
     throw BadInput("row map: the canopy mask must be CV_8U of the view size " +
                    std::to_string(g.view_size.width) + "x" + std::to_string(g.view_size.height));

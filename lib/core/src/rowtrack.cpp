@@ -131,10 +131,7 @@ void validate(const TrackerParams &p)
 void view_slopes(const StereoGeometry &g, double &left_slope, double &right_slope,
                  double &left_offset_mm)
 {
-  if (!g.valid())
-    throw BadInput("The stereo geometry is not valid: the view's edges need a calibrated, "
-                   "rectified pair (fx and baseline above 0, a view size).",
-                   "view_slopes: " + describe(g));
+  require_valid(g, "the view's edges", "view_slopes");
   right_slope = (g.view_size.width - 0.5 - g.cx[LEFT]) / g.fx;
   const double own = (-0.5 - g.cx[LEFT]) / g.fx, other = (-0.5 - g.cx[RIGHT]) / g.fx;
   if (other * 1000.0 + g.baseline_mm >= own * 1000.0) {

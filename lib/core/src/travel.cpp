@@ -641,10 +641,7 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
                        const StereoGeometry &g, const TravelParams &p, const GroundPlane &ground)
 {
   validate(p);
-  if (!g.valid())
-    throw BadInput("The stereo geometry is not valid: the rig's motion needs a calibrated, "
-                   "rectified pair (fx and baseline above 0, a view size).",
-                   "estimate_motion: " + describe(g));
+  require_valid(g, "the rig's motion", "estimate_motion");
   const cv::Mat *views[4] = {&prev_left, &prev_right, &left, &right};
   for (const cv::Mat *v : views) {
     if (v->size() != g.view_size)

@@ -43,6 +43,11 @@ inline std::string describe(const StereoGeometry &g)
          " view " + std::to_string(g.view_size.width) + "x" + std::to_string(g.view_size.height);
 }
 
+// Throws BadInput (errors.hpp) unless `g` is valid() with a finite focal length and baseline:
+// "The stereo geometry is not valid: <needs> needs a calibrated, rectified pair (...)", the
+// detail "<where>: " + describe(g). The one check of every lib function that takes a geometry.
+void require_valid(const StereoGeometry &g, const char *needs, const char *where);
+
 // One stereo correspondence in rectified pixels, each view in its own coordinates.
 struct StereoMatch {
   float xl = 0, yl = 0; // left view
