@@ -354,7 +354,8 @@ GroundPlane ground_from_meta(const GstTreeStereoCanopyMeta *meta)
 }
 
 std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
-                                        const GstTreeStereoMatchesMeta *mm, guint view_width)
+                                        const GstTreeStereoMatchesMeta *mm, guint view_width,
+                                        bool grid)
 {
   std::vector<PixelPoint> out;
   if (!pm || view_width == 0)
@@ -368,6 +369,8 @@ std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
       continue;
     PixelPoint q;
     if (i >= first_grid) { // a grid or dense point: match_index is the left pixel's index
+      if (!grid)
+        break; // the grid points are the last ones
       q.px = cv::Point2f(float(p.match_index % view_width), float(p.match_index / view_width));
     } else if (mm && p.match_index < mm->n_matches) {
       q.px = cv::Point2f(mm->matches[p.match_index].xl, mm->matches[p.match_index].yl);

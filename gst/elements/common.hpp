@@ -143,9 +143,10 @@ std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta);
 GroundPlane ground_from_meta(const GstTreeStereoCanopyMeta *meta);
 /* The points meta's valid points with their rectified-left pixels: a grid or dense point's from
  * its pixel index (y * @view_width + x), a match point's from the matches meta (skipped when
- * @mm is NULL or lacks it). */
+ * @mm is NULL or lacks it). @grid false: the match points alone. */
 std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
-                                        const GstTreeStereoMatchesMeta *mm, guint view_width);
+                                        const GstTreeStereoMatchesMeta *mm, guint view_width,
+                                        bool grid = true);
 /* Adds one frame of @buf to a row map (treemetrics' map, spraycontrol's): the canopy meta's
  * silhouette as the mask (all empty when it has none of the view's size: the view seen without
  * canopy), the points meta's points with their pixels (@pm may be NULL), @ground (must be found)

@@ -323,6 +323,10 @@ static void reset_along(GstTreeMetrics *self)
   self->state->warned_travel = false;
 }
 
+/* Keypoints (siftmatch's matches) enough for the travel to rest on them alone: at 2 m/s about a
+ * third of the points are tracked, and the estimate needs TravelParams::min_inliers (20). */
+static constexpr std::size_t kMinTravelKeypoints = 100;
+
 /* How long the position may run on the last measured speed without a new measurement (s). */
 static constexpr double kMaxPredictedS = 1.0;
 
@@ -406,10 +410,18 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
     a.odometer = std::make_unique<Odometer>(op);
   }
   // No points (no points meta): nothing to measure from, but the views serve the next frame.
+  // The travel rests on the matched keypoints when there are kMinTravelKeypoints of them:
+  // about a sixth of the densification's grid points carry the front leaves' depth on a back
+  // leaf seen through a gap, and they read the travel about 0.5 % short (docs/results.md,
+  // "Travel on the keypoints"). Fewer keypoints: every point.
   std::vector<PixelPoint> points;
-  if (pm)
-    points = treestereo::gst::pixel_points_of(pm, gst_buffer_get_tree_stereo_matches_meta(buf),
-                                              guint(geometry.view_size.width));
+  if (pm) {
+    const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
+    const guint width = guint(geometry.view_size.width);
+    points = treestereo::gst::pixel_points_of(pm, mm, width, false);
+    if (points.size() < kMinTravelKeypoints)
+      points = treestereo::gst::pixel_points_of(pm, mm, width);
+  }
   const bool had_views = a.odometer->has_previous();
   const auto t0 = std::chrono::steady_clock::now();
   const OdometryStep step = a.odometer->add(left, right, points, geometry, a.ground);
