@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -233,6 +234,94 @@ TEST(RowMap, ACrownsTopIsPlacedAtItsOwnDepth)
     EXPECT_NEAR(map.cell(b, 3).fill, 0.25 / 0.3, 0.03);
     EXPECT_NEAR(map.cell(b, 3).distance_m, 2.6, 0.001);
   }
+}
+
+// A round crown: a sphere of radius 350 mm whose centre is 1050 mm above the ground and 2350 mm
+// from the camera, at x = 2 m along the row. Stereo matches only where the leaves face the camera
+// within 60 degrees: none in the rows next to the silhouette. Its top band (1.3-1.6 m) holds the
+// cap above 1.3 m; the visible surface there reaches x = 2000 +- sqrt(350^2 - 250^2) at most,
+// less what the camera's rays graze.
+struct Sphere {
+  double x, h, z, r;
+};
+
+View cast_sphere(const StereoGeometry &g, const Sphere &s, double position_mm)
+{
+  View out;
+  out.mask = cv::Mat::zeros(g.view_size, CV_8U);
+  const cv::Vec3d c(s.x - position_mm, kCameraHeight - s.h, s.z); // camera frame, y down
+  for (int v = 0; v < g.view_size.height; ++v)
+    for (int u = 0; u < g.view_size.width; ++u) {
+      cv::Vec3d d((u - g.cx[LEFT]) / g.fx, (v - g.cy) / g.fy, 1.0);
+      d /= cv::norm(d);
+      const double b = d.dot(c), disc = b * b - (c.dot(c) - s.r * s.r);
+      if (disc < 0)
+        continue;
+      const double t = b - std::sqrt(disc);
+      const cv::Vec3d P = t * d, n = (P - c) / s.r;
+      out.mask.at<uchar>(v, u) = 255;
+      if (u % 10 == 0 && v % 10 == 0 && -n.dot(d) >= std::cos(60.0 * 3.14159265358979 / 180)) {
+        PixelPoint p;
+        p.px = cv::Point2f(float(u), float(v));
+        p.p.x = float(P[0]);
+        p.p.y = float(P[1]);
+        p.p.z = float(P[2]);
+        out.points.push_back(p);
+      }
+    }
+  return out;
+}
+
+// The visible surface's extent along the row within heights [h0, h1) from the camera at
+// position_mm: the sphere's points facing it (x, then h on a fine grid).
+void visible_extent(const Sphere &s, double position_mm, double h0, double h1, double &lo,
+                    double &hi)
+{
+  lo = std::numeric_limits<double>::infinity();
+  hi = -lo;
+  const cv::Vec3d cam(position_mm, kCameraHeight, 0), c(s.x, s.h, s.z);
+  for (double x = s.x - s.r; x <= s.x + s.r; x += 0.25)
+    for (double h = std::max(h0, s.h - s.r); h < std::min(h1, s.h + s.r); h += 0.25) {
+      const double dz2 = s.r * s.r - (x - s.x) * (x - s.x) - (h - s.h) * (h - s.h);
+      if (dz2 < 0)
+        continue;
+      const cv::Vec3d P(x, h, s.z - std::sqrt(dz2)); // the near half: the far one is hidden
+      if ((cam - P).dot(P - c) > 0) {
+        lo = std::min(lo, x);
+        hi = std::max(hi, x);
+      }
+    }
+}
+
+TEST(RowMap, ARoundCrownsCapReachesItsLimb)
+{
+  const Sphere crown{2000, 1050, 2350, 350};
+  RowMapParams params;
+  params.min_fill = 0; // every canopy pixel counts: the cap thins to nothing at its ends
+  const StereoGeometry g = camera();
+  RowMap map(params);
+  for (double pos = 1000; pos <= 3000; pos += 100) {
+    const View v = cast_sphere(g, crown, pos);
+    map.add_frame(v.mask, v.points, g, level_ground(), pos);
+  }
+  // The top band's extent: its first and last present bins' edges.
+  double lo_m = 0, hi_m = 0;
+  long first = 0, last = -1;
+  for (long b = map.first_bin(); b <= map.last_bin(); ++b)
+    if (map.cell(b, 3).present) {
+      if (last < first)
+        first = b, lo_m = map.cell(b, 3).lo_m;
+      last = b;
+      hi_m = map.cell(b, 3).hi_m;
+    }
+  ASSERT_GE(last, first);
+  // Each end as seen by the frame the map takes its bin from: the one nearest the bin's centre.
+  auto frame_of = [](long b) { return std::round((b + 0.5) * 50 / 100) * 100; };
+  double lo = 0, hi = 0, unused = 0;
+  visible_extent(crown, frame_of(first), 1300, 1600, lo, unused);
+  visible_extent(crown, frame_of(last), 1300, 1600, unused, hi);
+  EXPECT_NEAR(lo_m, lo / 1000, 0.01);
+  EXPECT_NEAR(hi_m, hi / 1000, 0.01);
 }
 
 TEST(RowMap, GapShowsAtFasterTravelToo)

@@ -49,6 +49,90 @@ template <class At> double nearest_set(int s, int n, At at)
   return z;
 }
 
+// A block's depth as a line down the view, z = z0 + dz_dv * (v - v0), fitted (least squares) to
+// the points around it; within the block it is held to their depths' range.
+struct BlockFit {
+  double v0 = 0, z0 = -1, dz_dv = 0, z_lo = 0, z_hi = 0;
+  bool valid() const { return z0 > 0; }
+  double at(double v) const { return std::clamp(z0 + dz_dv * (v - v0), z_lo, z_hi); }
+};
+
+BlockFit fit_block(const std::vector<cv::Point2d> &vz)
+{
+  BlockFit f;
+  double sv = 0, sz = 0;
+  for (const cv::Point2d &p : vz) {
+    sv += p.x;
+    sz += p.y;
+  }
+  f.v0 = sv / double(vz.size());
+  f.z0 = sz / double(vz.size());
+  double svv = 0, svz = 0;
+  f.z_lo = f.z_hi = vz.front().y;
+  for (const cv::Point2d &p : vz) {
+    svv += (p.x - f.v0) * (p.x - f.v0);
+    svz += (p.x - f.v0) * (p.y - f.z0);
+    f.z_lo = std::min(f.z_lo, p.y);
+    f.z_hi = std::max(f.z_hi, p.y);
+  }
+  f.dz_dv = svv > 0 ? svz / svv : 0;
+  return f;
+}
+
+// A round crown's section in a column of the view, beyond its outermost points (above the top
+// ones or below the bottom ones): a circle in the column's plane (camera y, z) tangent to the
+// outermost block's fit at its points' centroid and to the silhouette's bounding ray, so the
+// surface recedes towards the limb as a round crown's does, to about the crown's middle depth at
+// the limb. A fit that comes nearer towards the limb is taken as flat there; the circle's radius
+// is at most half the column's canopy chord (a sphere's section is a circle of that radius), and
+// depths lie from the fit's at the centroid to that much deeper.
+class LimbArc {
+public:
+  LimbArc() = default;
+  // `fit`: the outermost block's; `t_rim`: the silhouette's bounding ray ((v - cy) / fy at the
+  // silhouette's outer pixel edge); `chord_px`: the column's canopy rows from top to bottom.
+  LimbArc(const BlockFit &fit, double t_rim, double chord_px, double fy, double cy)
+  {
+    const double z0 = fit.z0, t0 = (fit.v0 - cy) / fy;
+    if (!fit.valid() || t_rim == t0)
+      return;
+    const bool top = t_rim < t0;
+    // Receding towards the limb: z rises as v falls (top) or rises (bottom).
+    const double b = top ? std::min(fit.dz_dv, 0.0) : std::max(fit.dz_dv, 0.0);
+    // The fit's normal in (Y, z), Y = t z: the tangent per row is (z0 / fy + t0 b, b).
+    double nY = -b, nz = z0 / fy + t0 * b;
+    if (nz < 0) {
+      nY = -nY;
+      nz = -nz;
+    }
+    const double n = std::hypot(nY, nz);
+    nY /= n;
+    nz /= n;
+    // Centre c = P0 + r n at distance r from the ray Y = t_rim z, on P0's side of it.
+    const double a = (t0 - t_rim) * z0, k = std::hypot(1.0, t_rim), bk = nY - t_rim * nz;
+    const double den = k - (a > 0 ? bk : -bk);
+    const double max_r = 0.5 * chord_px * z0 / fy;
+    r_ = den > 0 ? std::min(std::abs(a) / den, max_r) : max_r;
+    cY_ = t0 * z0 + r_ * nY;
+    cz_ = z0 + r_ * nz;
+    z_lo_ = z0;
+    z_hi_ = z0 + max_r;
+  }
+  bool valid() const { return r_ > 0; }
+  // The depth where the ray of slope t (= (v - cy) / fy) meets the circle (the point nearest it
+  // when it passes outside).
+  double depth(double t) const
+  {
+    const double p = t * cY_ + cz_, q = 1 + t * t;
+    const double disc = p * p - q * (cY_ * cY_ + cz_ * cz_ - r_ * r_);
+    const double z = disc > 0 ? (p - std::sqrt(disc)) / q : p / q;
+    return std::clamp(z, z_lo_, z_hi_);
+  }
+
+private:
+  double cY_ = 0, cz_ = 0, r_ = 0, z_lo_ = 0, z_hi_ = 0;
+};
+
 void require(bool ok, const char *field, const char *range)
 {
   if (!ok)
@@ -198,18 +282,23 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   // The depth of each block of a strip: the crown's top and bottom lie deeper than its front at
   // the camera's height, and placed at the strip's depth a pixel above the camera would read
   // too low (and one below too high): the outer bands would lose canopy to the middle ones.
-  // A block with kBlockMinPoints points around it takes their median, else the nearest such
-  // block beside it (same rows, within kStripReach strips), else the strip's depth.
+  // A block with kBlockMinPoints points around it takes their fitted line down the view
+  // (BlockFit), else the nearest such block's median beside it (same rows, within kStripReach
+  // strips), else the strip's depth. Pixels beyond a strip's outermost such block (above its
+  // centroid at the top, below it at the bottom) follow a round crown's section towards the
+  // silhouette (LimbArc): no points reach the limb, where the crown is deepest.
   const int block_rows = params_.strip_px * kBlockStrips;
   const int B = (H + block_rows - 1) / block_rows;
-  std::vector<std::vector<double>> block_pts(static_cast<std::size_t>(S) * std::size_t(B));
+  std::vector<std::vector<cv::Point2d>> block_pts(static_cast<std::size_t>(S) * std::size_t(B));
   for (const Pt &p : pts)
     block_pts[std::size_t(p.u / params_.strip_px) * std::size_t(B) + std::size_t(p.v / block_rows)]
-        .push_back(p.z);
+        .emplace_back(p.v, p.z);
   // A block's own depth: the points of its rows in its strip and the strips beside it (3 strips
   // by 4 strips' widths: a handful of points at stereodepth's grid spacing).
   std::vector<double> own_z(block_pts.size(), -1);
-  std::vector<double> near;
+  std::vector<BlockFit> fit(block_pts.size());
+  std::vector<cv::Point2d> near;
+  std::vector<double> near_z;
   for (int s = 0; s < S; ++s)
     for (int r = 0; r < B; ++r) {
       near.clear();
@@ -217,14 +306,29 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         const auto &q = block_pts[std::size_t(t) * std::size_t(B) + std::size_t(r)];
         near.insert(near.end(), q.begin(), q.end());
       }
-      if (near.size() >= kBlockMinPoints)
-        own_z[std::size_t(s) * std::size_t(B) + std::size_t(r)] = median(near);
+      if (near.size() < kBlockMinPoints)
+        continue;
+      near_z.clear();
+      for (const cv::Point2d &q : near)
+        near_z.push_back(q.y);
+      const std::size_t i = std::size_t(s) * std::size_t(B) + std::size_t(r);
+      own_z[i] = median(near_z);
+      fit[i] = fit_block(near);
     }
   std::vector<double> block_z(own_z.size());
   for (int s = 0; s < S; ++s)
     for (int r = 0; r < B; ++r)
       block_z[std::size_t(s) * std::size_t(B) + std::size_t(r)] = nearest_set(
           s, S, [&](int t) { return own_z[std::size_t(t) * std::size_t(B) + std::size_t(r)]; });
+  // Each strip's outermost fitted blocks: the top and bottom ones (-1: none).
+  std::vector<int> top_block(std::size_t(S), -1), bottom_block(std::size_t(S), -1);
+  for (int s = 0; s < S; ++s)
+    for (int r = 0; r < B; ++r)
+      if (fit[std::size_t(s) * std::size_t(B) + std::size_t(r)].valid()) {
+        if (top_block[std::size_t(s)] < 0)
+          top_block[std::size_t(s)] = r;
+        bottom_block[std::size_t(s)] = r;
+      }
 
   // Every pixel placed on the canopy's surface: counts per (bin, band).
   const double bin = params_.bin_mm;
@@ -255,7 +359,32 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   };
   for (int u = 0; u < W; ++u) {
     const double z_col = col_z[std::size_t(u)];
-    const std::size_t strip = std::size_t(u / params_.strip_px) * std::size_t(B);
+    const int s = u / params_.strip_px;
+    const std::size_t strip = std::size_t(s) * std::size_t(B);
+    // The column's silhouette: its top and bottom canopy rows. A limb at the image's edge is
+    // none (the canopy goes on beyond it).
+    int v_top = -1, v_bottom = -1;
+    for (int v = 0; v < H; ++v)
+      if (mask.at<uchar>(v, u)) {
+        if (v_top < 0)
+          v_top = v;
+        v_bottom = v;
+      }
+    // Rows beyond these follow the arcs (above_v: above the top fit's centroid, below_v: below
+    // the bottom one's).
+    LimbArc above, below;
+    double above_v = -1, below_v = H;
+    const int chord = v_bottom - v_top + 1;
+    if (v_top > 0 && top_block[std::size_t(s)] >= 0) {
+      const BlockFit &f = fit[strip + std::size_t(top_block[std::size_t(s)])];
+      above = LimbArc(f, (v_top - 0.5 - cy) / fy, chord, fy, cy);
+      above_v = above.valid() ? f.v0 : -1;
+    }
+    if (v_bottom >= 0 && v_bottom < H - 1 && bottom_block[std::size_t(s)] >= 0) {
+      const BlockFit &f = fit[strip + std::size_t(bottom_block[std::size_t(s)])];
+      below = LimbArc(f, (v_bottom + 0.5 - cy) / fy, chord, fy, cy);
+      below_v = below.valid() ? f.v0 : H;
+    }
     double wx = 0;
     for (int v = 0; v < H; ++v) {
       const long c_all = cell_of(u, v, z_col, wx);
@@ -263,9 +392,15 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         ++total[std::size_t(c_all)];
       if (!mask.at<uchar>(v, u))
         continue;
-      const double bz = block_z[strip + std::size_t(v / block_rows)];
-      const double z = bz > 0 ? bz : z_col;
-      const long c = bz > 0 ? cell_of(u, v, z, wx) : c_all;
+      const std::size_t blk = strip + std::size_t(v / block_rows);
+      double z = block_z[blk] > 0 ? block_z[blk] : z_col;
+      if (v < above_v)
+        z = above.depth((v - cy) / fy);
+      else if (v > below_v)
+        z = below.depth((v - cy) / fy);
+      else if (fit[blk].valid())
+        z = fit[blk].at(v);
+      const long c = z != z_col ? cell_of(u, v, z, wx) : c_all;
       if (c < 0)
         continue;
       const double half_px = 0.5 * z / fx; // a column covers wx +- half a pixel along the row
