@@ -1035,7 +1035,12 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
           m[x] = 255;
     }
   }
-  r.present = describe_silhouette(r.silhouette, cv::Rect(cv::Point(0, 0), size), 1.0);
+  // Described over the canopy's bounding box and a pixel around it (a contour finder's border
+  // reads as background, as the view's edge does): the rest of the view holds no canopy.
+  const cv::Rect view(cv::Point(0, 0), size);
+  cv::Rect around = cv::boundingRect(r.silhouette.mask);
+  around = around.empty() ? view : (around + cv::Size(2, 2) - cv::Point(1, 1)) & view;
+  r.present = describe_silhouette(r.silhouette, around, 1.0);
   return r;
 }
 
