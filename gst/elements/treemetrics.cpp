@@ -228,19 +228,6 @@ struct State {
   Worker travel_worker;
 };
 
-/* Waits for a job's end when it goes out of scope, also when an exception leaves it. */
-template <class T> struct WaitFor {
-  std::future<T> &job;
-  explicit WaitFor(std::future<T> &f) : job(f) {}
-  WaitFor(const WaitFor &) = delete;
-  WaitFor &operator=(const WaitFor &) = delete;
-  ~WaitFor()
-  {
-    if (job.valid())
-      job.wait();
-  }
-};
-
 /* GstTreeStereoMetrics that frees its bands. */
 struct GstMetrics {
   GstTreeStereoMetrics m{};

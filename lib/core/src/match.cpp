@@ -432,24 +432,20 @@ StereoMatchResult StereoMatcher::run(const cv::Mat &left, const cv::Mat &right,
       return detector_[RIGHT].locate(gr, mask_right);
     });
     LocatedFeatures ll, lr;
-    try {
+    {
+      const WaitFor waited(right_job); // it reads the caller's views and writes gr
       gl = to_gray8(left);
       ll = detector_[LEFT].locate(gl, mask_left);
-    } catch (...) {
-      right_job.wait(); // it reads the caller's views and writes gr
-      throw;
+      lr = right_job.get();
     }
-    lr = right_job.get();
     const std::vector<char> need_l = needed(ll, lr, true), need_r = needed(lr, ll, false);
     auto describe_right = worker_->run(
         [&] { return detector_[RIGHT].describe(std::move(lr), need_r); });
-    try {
+    {
+      const WaitFor waited(describe_right);
       fl = detector_[LEFT].describe(std::move(ll), need_l);
-    } catch (...) {
-      describe_right.wait();
-      throw;
+      fr = describe_right.get();
     }
-    fr = describe_right.get();
   } else {
     gl = to_gray8(left);
     gr = to_gray8(right);

@@ -26,9 +26,9 @@
 // radius at most half the column's canopy chord (a sphere's section through the column is a
 // circle of that size), its depth from the centroid's to that much deeper; a fit that comes
 // nearer towards the limb is taken as flat, and a limb at the image's edge has no arc. Without
-// it the thin caps of crowns just above a band's edge were missed (on the drive-by bench the
-// top section sprayed up to 21 % short). Its world x is X + position, its height the ground
-// plane's height of the 3D point. A cell (bin, band) of that frame:
+// it the thin caps of crowns just above a band's edge were missed (docs/results.md, "Travel on
+// the keypoints, and the crown's limb in the row map"). Its world x is X + position, its height
+// the ground plane's height of the 3D point. A cell (bin, band) of that frame:
 //  - fill: the share of the cell's pixels (those the view has of it) that are canopy;
 //  - present: fill >= min_fill;
 //  - lo_m / hi_m: the world x of its leftmost and rightmost canopy pixel columns;

@@ -48,4 +48,21 @@ private:
   std::thread thread_; // last: starts once the members above exist
 };
 
+// Waits for a job's end when it goes out of scope, also when an exception leaves the scope: a job
+// that reads the caller's data (a frame, its state) must end before that data goes.
+template <class T> class WaitFor {
+public:
+  explicit WaitFor(std::future<T> &job) : job_(job) {}
+  WaitFor(const WaitFor &) = delete;
+  WaitFor &operator=(const WaitFor &) = delete;
+  ~WaitFor()
+  {
+    if (job_.valid())
+      job_.wait();
+  }
+
+private:
+  std::future<T> &job_;
+};
+
 } // namespace treestereo
