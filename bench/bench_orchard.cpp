@@ -610,19 +610,25 @@ struct DrivebyRun {
 
 // The truth of spraycontrol's commands: per band of the row map (heights above the ground), the
 // near row's canopy along the row as the left camera sees it (GroundTruth::row_points_mm of every
-// frame, in 10 mm bins), gaps shorter than min_gap closed, canopy shorter than min_canopy dropped
-// (SprayParams' defaults, as spraycontrol's).
+// frame), gaps shorter than min_gap closed, canopy shorter than min_canopy dropped (SprayParams'
+// defaults, as spraycontrol's). The points are gathered in 10 mm bins along the row, and each bin
+// keeps its lowest and highest x: a stretch of canopy runs from its first bin's lowest point to
+// its last bin's highest, not to the bins' edges (which would lengthen every stretch by one bin,
+// 10 mm, on average).
 struct SprayTruth {
   static constexpr double kBinMm = 10;
   double lo_mm = 0;
   std::vector<double> band_edges_mm;
-  std::vector<std::vector<bool>> present; // [band][bin]
+  std::vector<std::vector<bool>> present;     // [band][bin]
+  std::vector<std::vector<double>> lo_x, hi_x; // [band][bin]: the bin's extreme points' x (mm)
 
   SprayTruth(double lo_mm_, double hi_mm, const RowMapParams &map)
       : lo_mm(lo_mm_), band_edges_mm(RowMap(map).band_edges_mm())
   {
-    present.assign(band_edges_mm.size() - 1,
-                   std::vector<bool>(std::size_t((hi_mm - lo_mm) / kBinMm) + 1));
+    const std::size_t bins = std::size_t((hi_mm - lo_mm) / kBinMm) + 1;
+    present.assign(band_edges_mm.size() - 1, std::vector<bool>(bins));
+    lo_x.assign(present.size(), std::vector<double>(bins, 0));
+    hi_x = lo_x;
   }
   void add(const GroundTruth &t, double travel_mm, double camera_height_mm)
   {
@@ -631,9 +637,18 @@ struct SprayTruth {
       const long bin = std::lround(std::floor((x - lo_mm) / kBinMm));
       if (bin < 0 || bin >= long(present[0].size()))
         continue;
-      for (std::size_t b = 0; b + 1 < band_edges_mm.size(); ++b)
-        if (h >= band_edges_mm[b] && h < band_edges_mm[b + 1])
-          present[b][std::size_t(bin)] = true;
+      const std::size_t i = std::size_t(bin);
+      for (std::size_t b = 0; b + 1 < band_edges_mm.size(); ++b) {
+        if (h < band_edges_mm[b] || h >= band_edges_mm[b + 1])
+          continue;
+        if (!present[b][i]) {
+          present[b][i] = true;
+          lo_x[b][i] = hi_x[b][i] = x;
+        } else {
+          lo_x[b][i] = std::min(lo_x[b][i], x);
+          hi_x[b][i] = std::max(hi_x[b][i], x);
+        }
+      }
     }
   }
   // The sprayed intervals of band b (world x, mm).
@@ -644,7 +659,7 @@ struct SprayTruth {
     for (std::size_t i = 0; i < v.size(); ++i) {
       if (!v[i])
         continue;
-      const double a = lo_mm + double(i) * kBinMm, e = a + kBinMm;
+      const double a = lo_x[b][i], e = hi_x[b][i];
       if (!runs.empty() && a - runs.back().second < sp.min_gap_m * 1000)
         runs.back().second = e;
       else

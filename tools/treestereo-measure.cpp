@@ -18,6 +18,7 @@
 
 #include <gst/gst.h>
 #include <gst/treestereo/treestereo-meta.h>
+#include "band-meta.hpp"
 #include <glib-unix.h>
 #include <glib/gstdio.h>
 
@@ -323,9 +324,7 @@ void write_metrics_json(JsonWriter &w, const GstTreeStereoMetrics &m)
     w.value("right");
   w.end_array().key("bands").begin_array();
   for (guint i = 0; i < m.n_bands; i++) {
-    const GstTreeStereoBand &b = m.bands[i];
-    write_band(w, RecordBand{bool(b.present), b.top_m, b.bottom_m, b.left_m, b.right_m,
-                             b.width_m, b.depth_m, b.fill});
+    write_band(w, band_from_meta(m.bands[i]));
   }
   w.end_array()
       .field("n_points", m.n_points)
@@ -538,17 +537,7 @@ TreeRecord record_of(const GstTreeStereoTreeRecord &r)
   t.thickness_m = r.thickness_m;
   t.confidence = r.confidence;
   for (guint i = 0; i < r.n_bands; i++) {
-    const GstTreeStereoBand &b = r.bands[i];
-    RecordBand o;
-    o.present = b.present;
-    o.top_m = b.top_m;
-    o.bottom_m = b.bottom_m;
-    o.left_m = b.left_m;
-    o.right_m = b.right_m;
-    o.width_m = b.width_m;
-    o.depth_m = b.depth_m;
-    o.fill = b.fill;
-    t.bands.push_back(o);
+    t.bands.push_back(band_from_meta(r.bands[i]));
   }
   t.frames = int(r.frames);
   t.frames_seen = int(r.frames_seen);

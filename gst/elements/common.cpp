@@ -1,5 +1,7 @@
 #include "common.hpp"
 
+#include "band-meta.hpp"
+
 #include "treestereo/calibration.hpp"
 #include "treestereo/errors.hpp"
 #include "treestereo/features.hpp"
@@ -260,18 +262,7 @@ void metrics_to_gst(const TreeMetrics &m, GstTreeStereoMetrics *out, GstTreeSter
   out->confidence = m.confidence;
   gst_tree_stereo_metrics_set_n_bands(out, guint(m.bands.size()));
   for (std::size_t i = 0; i < m.bands.size(); i++) {
-    const Band &b = m.bands[i];
-    GstTreeStereoBand &o = out->bands[i];
-    o.present = b.present;
-    if (!b.present)
-      continue;
-    o.top_m = b.top_m;
-    o.bottom_m = b.bottom_m;
-    o.left_m = b.left_m;
-    o.right_m = b.right_m;
-    o.width_m = b.width_m;
-    o.depth_m = b.depth_m;
-    o.fill = b.fill;
+    band_to_meta(m.bands[i], out->bands[i]);
   }
 }
 
@@ -409,18 +400,7 @@ void record_to_gst(const TreeRecord &r, GstTreeStereoTreeRecord *out)
     out->confidence = r.confidence;
     gst_tree_stereo_tree_record_set_n_bands(out, guint(r.bands.size()));
     for (std::size_t i = 0; i < r.bands.size(); i++) {
-      const RecordBand &b = r.bands[i];
-      GstTreeStereoBand &o = out->bands[i];
-      o.present = b.present;
-      if (!b.present)
-        continue; // an absent band's values mean nothing: 0
-      o.top_m = b.top_m;
-      o.bottom_m = b.bottom_m;
-      o.left_m = b.left_m;
-      o.right_m = b.right_m;
-      o.width_m = b.width_m;
-      o.depth_m = b.depth_m;
-      o.fill = b.fill;
+      band_to_meta(r.bands[i], out->bands[i]);
     }
   }
   out->frames = guint(std::max(0, r.frames));
@@ -496,16 +476,8 @@ TreeMetrics metrics_from_meta(const GstTreeStereoMetrics *m)
   t.matches = m->n_matches;
   t.confidence = m->confidence;
   for (guint i = 0; m->bands && i < m->n_bands; i++) {
-    const GstTreeStereoBand &b = m->bands[i];
     Band o;
-    o.present = b.present;
-    o.top_m = b.top_m;
-    o.bottom_m = b.bottom_m;
-    o.left_m = b.left_m;
-    o.right_m = b.right_m;
-    o.width_m = b.width_m;
-    o.depth_m = b.depth_m;
-    o.fill = b.fill;
+    static_cast<BandExtent &>(o) = band_from_meta(m->bands[i]);
     t.bands.push_back(o);
   }
   return t;

@@ -77,9 +77,9 @@ double overlap(double a0, double a1, double b0, double b1)
   return std::min(a1, b1) - std::max(a0, b0);
 }
 
-std::vector<RecordBand> fuse_bands(const std::vector<std::vector<RecordBand>> &frames)
+std::vector<BandExtent> fuse_bands(const std::vector<std::vector<BandExtent>> &frames)
 {
-  std::vector<RecordBand> out;
+  std::vector<BandExtent> out;
   if (frames.empty())
     return out;
   const std::size_t n = frames.front().size();
@@ -91,7 +91,7 @@ std::vector<RecordBand> fuse_bands(const std::vector<std::vector<RecordBand>> &f
       if (f.size() != n)
         continue;
       ++count;
-      const RecordBand &x = f[b];
+      const BandExtent &x = f[b];
       if (!x.present)
         continue;
       top.push_back(x.top_m);
@@ -102,7 +102,7 @@ std::vector<RecordBand> fuse_bands(const std::vector<std::vector<RecordBand>> &f
       depth.push_back(x.depth_m);
       fill.push_back(x.fill);
     }
-    RecordBand &o = out[b];
+    BandExtent &o = out[b];
     o.present = !top.empty() && 2 * top.size() >= count;
     if (!o.present)
       continue;
@@ -351,17 +351,11 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
     push_capped(k.distances, m.distance_m);
     push_capped(k.thicknesses, m.thickness_m);
     push_capped(k.confidences, m.confidence);
-    std::vector<RecordBand> bands;
+    std::vector<BandExtent> bands;
     for (const Band &b : m.bands) {
-      RecordBand r;
-      r.present = b.present;
-      r.top_m = b.top_m;
-      r.bottom_m = b.bottom_m;
-      r.left_m = b.left_m + pos * kMmToM;
-      r.right_m = b.right_m + pos * kMmToM;
-      r.width_m = b.width_m;
-      r.depth_m = b.depth_m;
-      r.fill = b.fill;
+      BandExtent r = b;
+      r.left_m += pos * kMmToM;
+      r.right_m += pos * kMmToM;
       bands.push_back(r);
     }
     push_capped(k.bands, std::move(bands));

@@ -6,7 +6,7 @@
 
 namespace treestereo {
 
-JsonWriter &write_band(JsonWriter &w, const RecordBand &b)
+JsonWriter &write_band(JsonWriter &w, const BandExtent &b)
 {
   w.begin_object().field("present", b.present);
   if (b.present)
@@ -42,7 +42,7 @@ std::string to_json(const TreeRecord &r)
   if (r.has_depth) {
     w.field("thickness_m", r.thickness_m);
     w.key("bands").begin_array();
-    for (const RecordBand &b : r.bands)
+    for (const BandExtent &b : r.bands)
       write_band(w, b);
     w.end_array();
   }

@@ -113,23 +113,27 @@ struct Clipped {
   bool any() const { return top || bottom || left || right; }
 };
 
-// One horizontal slice of the canopy. Present = the silhouette has pixels in it.
-struct Band {
-  bool present = false;
+// One horizontal slice of the canopy: what a frame measures of it, what a tree record keeps of it
+// (rowtrack's fused bands) and what the band meta GstTreeStereoBand carries.
+struct BandExtent {
+  bool present = false;             // the silhouette has pixels in it; else the values are 0
   double top_m = 0, bottom_m = 0;   // Y of the band's top and bottom (y down)
   double left_m = 0, right_m = 0;   // X of the canopy's left and right edge in the band
   double width_m = 0;               // right - left
-  // Nearest-face depth: band_depth_percentile of the band's point depths. A present band with
-  // too few points interpolates linearly between the nearest measured bands above and below
-  // (or copies the one measured neighbour side); depth_measured is then false. 0 when the band
-  // is absent or no band has points.
-  double depth_m = 0;
-  bool depth_measured = false;
-  std::size_t n_points = 0;
+  double depth_m = 0;               // nearest-face depth (see Band)
   // Share (0..1) of the band's left-right extent covered by canopy: of the columns between the
   // band's leftmost and rightmost canopy pixel, those with canopy in at least one of the band's
   // rows (band_fill()). 0 when the band is absent.
   double fill = 0;
+};
+
+// A frame's band: its extent, and how its depth was found. The depth is band_depth_percentile of
+// the band's point depths. A present band with too few points interpolates linearly between the
+// nearest measured bands above and below (or copies the one measured neighbour side);
+// depth_measured is then false. 0 when the band is absent or no band has points.
+struct Band : BandExtent {
+  bool depth_measured = false;
+  std::size_t n_points = 0;
 };
 
 struct TreeMetrics {

@@ -111,14 +111,6 @@ struct TrackFrame {
 void view_slopes(const StereoGeometry &geometry, double &left_slope, double &right_slope,
                  double &left_offset_mm);
 
-// One band of a record: TreeMetrics' Band fused over the frames fully in view (median per value;
-// present when it was present in at least half of them). left_m / right_m are world positions
-// along the row; top_m / bottom_m as the frames have them (camera y, down).
-struct RecordBand {
-  bool present = false;
-  double top_m = 0, bottom_m = 0, left_m = 0, right_m = 0, width_m = 0, depth_m = 0, fill = 0;
-};
-
 struct TreeRecord {
   int id = 0;                      // 1, 2, ... in the order the trees entered the view
   CanopyMode mode = CanopyMode::Tree;
@@ -129,7 +121,10 @@ struct TreeRecord {
   bool has_height = false, has_width = false, has_depth = false; // has_depth: distance,
                                                                  // thickness, bands, confidence
   double height_m = 0, width_m = 0, distance_m = 0, thickness_m = 0;
-  std::vector<RecordBand> bands;
+  // The bands fused over the frames fully in view (median per value; present when it was present
+  // in at least half of them). left_m / right_m are world positions along the row; top_m /
+  // bottom_m as the frames have them (camera y, down).
+  std::vector<BandExtent> bands;
   double confidence = 0;
   int frames = 0;                  // frames fused: fully in view (mode Row: seen)
   int frames_seen = 0;             // frames its segment was seen in
@@ -171,7 +166,7 @@ private:
     double near_mm = 0;                  // front depth in the last frame it was seen
     std::vector<double> starts, ends;    // world extents of uncut sides
     std::vector<double> heights, widths, distances, thicknesses, confidences;
-    std::vector<std::vector<RecordBand>> bands; // per frame fully in view
+    std::vector<std::vector<BandExtent>> bands; // per frame fully in view
     int frames_seen = 0, missed = 0;
     bool lost = false;
   };

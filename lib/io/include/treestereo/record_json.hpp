@@ -16,6 +16,6 @@ std::string to_json(const TreeRecord &record);
 
 // One height band as a JSON object: present, and when present top_m, bottom_m, left_m, right_m,
 // width_m, depth_m, fill (DESIGN.md's band names, in frames and records alike).
-JsonWriter &write_band(JsonWriter &w, const RecordBand &band);
+JsonWriter &write_band(JsonWriter &w, const BandExtent &band);
 
 } // namespace treestereo
