@@ -9,7 +9,8 @@
 //                 [--hedgerow-distances 1.6:2.4:0.4] [--hedgerow-lights 1.0]
 //                 [--speeds 0.5,1.0,2.0] [--driveby-distance 2.0]          (drive-by sweep)
 //                 [--exgsegment "keep=all"] [--siftmatch ...] [--stereodepth ...]
-//                 [--treemetrics ...] [--masks DIR] (overlays of the frames that fail badly)
+//                 [--treemetrics ...] [--masks DIR] (overlays of the frames that fail badly;
+//                 each drive-by frame's, and each drive-by run's row map, CSV and picture)
 //
 // Orchard sweep (scene orchard, stereodepth canopy=tree): each seed, distance and light in four
 // row layouts (the default gaps of 0.2-0.6 m, tight gaps of 0.2-0.3 m, the next row 3.0 m and
@@ -731,8 +732,24 @@ void score_spray(DrivebyRun &run, const SprayTruth &truth,
     }
     if (open)
       chain_len += clip(from, w_hi);
-    for (const auto &r : iv)
+    std::string chain_runs, true_runs;
+    char buf[64];
+    for (std::size_t i = 0; i < sw.size(); ++i)
+      if (sw[i].second && (i == 0 || !sw[i - 1].second)) {
+        std::size_t j = i + 1;
+        while (j < sw.size() && sw[j].second)
+          ++j;
+        std::snprintf(buf, sizeof buf, " %.3f..%.3f", sw[i].first * 1e-3,
+                      (j < sw.size() ? sw[j].first : w_hi) * 1e-3);
+        chain_runs += buf;
+      }
+    for (const auto &r : iv) {
       true_len += clip(r.first, r.second);
+      std::snprintf(buf, sizeof buf, " %.3f..%.3f", r.first * 1e-3, r.second * 1e-3);
+      true_runs += buf;
+    }
+    std::fprintf(stderr, "driveby seed=%llu: section %zu stretches (m), chain:%s; truth:%s\n",
+                 (unsigned long long)run.c.seed, b, chain_runs.c_str(), true_runs.c_str());
     if (true_len > 0)
       run.length_err.push_back(100 * (chain_len - true_len) / true_len);
     std::fprintf(stderr, "driveby seed=%llu: section %zu sprayed %.0f mm (truth %.0f mm, %+.1f %%) "
@@ -810,6 +827,20 @@ void driveby_sweep(const Options &o)
         spray_truth.add(gt, renderer.travel_mm(std::uint64_t(k)), run.c.params().camera_height_mm);
       }
       const auto on_frame = [&](int frame, const std::vector<GstBuffer *> &buf) {
+        // With --masks: every frame's 3D canopy (red) against the true near row (blue).
+        const auto *g = gst_buffer_get_tree_stereo_geometry_meta(buf[0]);
+        if (!o.masks.empty() && g) {
+          cv::Mat rgb;
+          GroundTruth gt;
+          renderer.render(LEFT, std::uint64_t(frame), rgb, &gt);
+          const GstTreeStereoCanopyMeta *cm = gst_buffer_get_tree_stereo_canopy_meta(buf[0]);
+          const MappedMask chain_mask(cm ? cm->view : GstTreeStereoVegetationView{});
+          char path[512];
+          std::snprintf(path, sizeof path, "%s/driveby-seed%llu-%.1fms-frame%03d.png",
+                        o.masks.c_str(), (unsigned long long)run.c.seed, speed, frame);
+          save_overlay(buf[0], *g, chain_mask.mat, TruthRectifier(rig.calibration(), *g)(gt.row_mask),
+                       path);
+        }
         if (const auto *m = gst_buffer_get_tree_stereo_metrics_meta(buf[0])) {
           run.position = m->metrics.position_m;
           // The near row's segments along the row (world x: the frame's position + X).
@@ -892,6 +923,21 @@ void driveby_sweep(const Options &o)
                      (unsigned long long)run.c.seed, held ? "h" : "", speed, t.index,
                      0.5 * (t.start_m + t.end_m), best->position, best->height, t.height_m,
                      best->width, t.width_m);
+      }
+      // With --masks: the run's row map (CSV and picture) kept there.
+      if (!o.masks.empty()) {
+        char name[128];
+        std::snprintf(name, sizeof name, "/driveby-seed%llu-%.1fms-map", (unsigned long long)seed,
+                      speed);
+        for (const char *ext : {".csv", ".png"}) {
+          gchar *data = nullptr;
+          gsize len = 0;
+          const std::string from = std::string(dir) + "/map" + ext, to = o.masks + name + ext;
+          if (g_file_get_contents(from.c_str(), &data, &len, nullptr) &&
+              g_file_set_contents(to.c_str(), data, gssize(len), nullptr))
+            std::fprintf(stderr, "  saved %s\n", to.c_str());
+          g_free(data);
+        }
       }
       // Gaps of 10 cm and more between consecutive true trees: a 5 cm bin wholly inside the
       // gap is empty in every band of the map.
