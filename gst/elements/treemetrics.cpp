@@ -486,6 +486,21 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
       f.metrics = m;
       f.measured_segment = selected;
     }
+    if (gst_debug_category_get_threshold(treemetrics_debug) >= GST_LEVEL_LOG) {
+      // What the tracker is given, along the row (m): "[" an end, "~" cut at a valley, "*" the
+      // segment measured.
+      std::string segs;
+      char seg[96];
+      for (std::size_t i = 0; i < f.segments.size(); i++) {
+        const RowSegment &g = f.segments[i];
+        std::snprintf(seg, sizeof seg, " %s%.3f..%.3f%s%s", g.joined_lo ? "~" : "[",
+                      (f.position_mm + g.lo_mm) / 1000, (f.position_mm + g.hi_mm) / 1000,
+                      g.joined_hi ? "~" : "]", int(i) == f.measured_segment ? "*" : "");
+        segs += seg;
+      }
+      GST_LOG_OBJECT(self, "at %.3f m, segments along the row:%s", f.position_mm / 1000,
+                     segs.c_str());
+    }
     std::vector<TreeRecord> r = a.tracker->update(f);
     out.insert(out.end(), r.begin(), r.end());
   }

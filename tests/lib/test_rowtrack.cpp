@@ -509,6 +509,36 @@ TEST(TreeTracker, AFrameBridgingAGapDoesNotJoinTwoTrees)
   }
 }
 
+TEST(TreeTracker, AnEnteringCrownSplitForOneFrameIsOneTree)
+{
+  // The fourth tree enters at the right edge; in one frame a sparse column splits what is in
+  // view of it in two: a piece at the edge 80 mm beyond the rest. The next frames see it whole.
+  for (double speed : {0.5, 1.0, 2.0}) {
+    SCOPED_TRACE("speed " + std::to_string(speed));
+    Sim sim;
+    sim.speed_m_s = speed;
+    auto frames = simulate(kRow, sim);
+    const TrueTree &t = kRow[3];
+    std::size_t split = frames.size();
+    for (std::size_t f = 0; f < frames.size() && split == frames.size(); ++f) {
+      const double a = t.start_mm - frames[f].true_position_mm;
+      if (a < kR - 200 && t.end_mm - frames[f].true_position_mm > kR)
+        split = f;
+    }
+    ASSERT_LT(split, frames.size()) << "no frame with the tree entering";
+    auto &segs = frames[split].frame.segments;
+    ASSERT_FALSE(segs.empty());
+    RowSegment &entering = segs.back(); // the rightmost: the tree at the edge
+    RowSegment rest = entering, edge_piece = entering;
+    rest.hi_mm = entering.hi_mm - 100;
+    edge_piece.lo_mm = entering.hi_mm - 20;
+    entering = rest;
+    segs.push_back(edge_piece);
+    TreeTracker tracker;
+    expect_row(run(tracker, frames), frames);
+  }
+}
+
 TEST(TreeTracker, RemnantAtTheTrailingEdgeIsNoNewTree)
 {
   // A limb at the back of the first tree (0.6 m behind the row's front) shows at the left edge

@@ -209,7 +209,7 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
 
   // Which segments each track is seen in.
   std::vector<std::vector<std::size_t>> obs(nt);
-  std::vector<bool> seg_used(ns, false), kept_alive(nt, false);
+  std::vector<bool> seg_used(ns, false), kept_alive(nt, false), piece(nt, false);
   if (!row)
     for (std::size_t i = 0; i < ns; ++i) {
       // A segment cut at a valley overlaps its neighbour's track by as much as the crowns grew
@@ -223,7 +223,25 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
           over.push_back(t);
       if (over.size() < 2)
         continue;
-      // Two trees seen as one: neither's extent nor measurement is trusted this frame.
+      // A piece of a tree: a track the last frame started from a segment split off its
+      // neighbour's (a sparse column across a crown entering the view): seen once, at the
+      // leading edge of the view (its leading end cut there), never measured, and now covered
+      // whole by this segment together with a track that is not such a piece. It is dropped,
+      // not emitted: it was part of that tree.
+      std::size_t pieces = 0;
+      for (std::size_t t : over) {
+        const Track &k = tracks_[t];
+        piece[t] = k.frames_seen == 1 && k.missed == 0 && k.heights.empty() &&
+                   k.widths.empty() && k.distances.empty() &&
+                   (direction_ > 0 ? k.ends.empty() : k.starts.empty()) &&
+                   k.min_lo_mm >= segs[i].lo - tol && k.max_hi_mm <= segs[i].hi + tol;
+        pieces += piece[t] ? 1 : 0;
+      }
+      if (pieces == over.size()) // nothing but pieces: trees of their own
+        for (std::size_t t : over)
+          piece[t] = false;
+      // Two trees seen as one (or a tree with its piece): neither's extent nor measurement is
+      // trusted this frame.
       seg_used[i] = true;
       for (std::size_t t : over)
         kept_alive[t] = true;
@@ -359,6 +377,22 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
       bands.push_back(r);
     }
     push_capped(k.bands, std::move(bands));
+  }
+
+  // The pieces go; an id the last of them took is given again.
+  if (std::find(piece.begin(), piece.end(), true) != piece.end()) {
+    std::vector<Track> kept;
+    std::vector<int> gone;
+    for (std::size_t t = 0; t < tracks_.size(); ++t)
+      if (t < nt && piece[t])
+        gone.push_back(tracks_[t].id);
+      else
+        kept.push_back(std::move(tracks_[t]));
+    tracks_ = std::move(kept);
+    std::sort(gone.rbegin(), gone.rend());
+    for (int id : gone)
+      if (id == next_id_ - 1)
+        --next_id_;
   }
 
   // Mode Row: canopies that now overlap are one (a segment reached across to the next track).

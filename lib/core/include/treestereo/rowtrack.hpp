@@ -30,7 +30,11 @@
 //    own. One segment over two tracks: mode Tree keeps both tracks alive without updating them
 //    (two trees seen as one: neither's extent nor the measurement is trusted; a segment cut at a
 //    valley counts a neighbour's track only when it covers half of it); mode Row merges them
-//    (touching canopies are one).
+//    (touching canopies are one). Mode Tree, a piece of a tree: a track started the frame
+//    before from a segment split off at the leading edge of the view (a sparse column across a
+//    crown entering it), seen once and never measured, which one segment now covers whole with
+//    a track that is no such piece, is dropped without a record (its id is given again when it
+//    was the last one given).
 //  - Fusion (median over frames): height from the frames whose metrics are clipped neither at
 //    the top nor the bottom, width from those clipped neither left nor right, distance,
 //    thickness, bands and confidence from the frames fully in view (no clipped side). start_m
