@@ -97,6 +97,9 @@ struct State {
   bool fault = false;            // the running aravissrc posted an error
   std::string fault_reason;
   bool got_buffer = false; // Starting: its first frame came
+  // A camera of this run has streamed with these caps: a not-negotiated flow after that is a
+  // camera caught while it (re)starts or goes away, not caps it cannot give.
+  bool streamed = false;
   gint64 started = 0, last_buffer = 0, next_try = 0, lost_at = 0; // monotonic, us
   guint attempt = 0;      // failed attempts since the camera was lost
   bool lost = false;      // "lost" posted, "back" not yet
@@ -482,6 +485,7 @@ static gpointer supervise(gpointer data)
     // Starting or Streaming
     if (st.phase == Phase::Starting && st.got_buffer) {
       st.phase = Phase::Streaming;
+      st.streamed = true;
       const bool was_lost = st.lost;
       const guint attempt = st.attempt + 1;
       const GstClockTime gap = GstClockTime(now - st.lost_at) * GST_USECOND;
@@ -556,7 +560,9 @@ static gpointer supervise(gpointer data)
 
 /* Errors of the aravissrc (opening, streaming) are a lost camera while reconnecting is on: they
  * stay in the bin and the supervisor acts. A not-negotiated flow (the caps ask for what the
- * camera cannot give) is a configuration fault and goes to the bus. */
+ * camera cannot give) is a configuration fault and goes to the bus, unless a camera has streamed
+ * with these caps in this run: then it is a camera caught while it restarts (seen with a fake
+ * camera killed and started again), and the attempt fails like any other. */
 static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
 {
   GstTreeCameraSrc *self = GST_TREE_CAMERA_SRC(bin);
@@ -584,7 +590,8 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
       // the end was asked for, or an aravissrc already taken off the chain (lost, or stopping:
       // unlinked, it fails with not-linked): a camera failing now changes nothing
       keep = true;
-    } else if ((from_opening || from_source) && flow == GST_FLOW_NOT_NEGOTIATED) {
+    } else if ((from_opening || from_source) && flow == GST_FLOW_NOT_NEGOTIATED &&
+               !st.streamed) {
       st.phase = Phase::Stopped; // goes to the bus: the caps are wrong, retrying cannot help
     } else if (from_opening) {
       st.open_error = err->message;
@@ -765,6 +772,7 @@ static void start_supervisor(GstTreeCameraSrc *self)
   st.lost = false;
   st.fault = false;
   st.got_buffer = false;
+  st.streamed = false;
   g_mutex_unlock(&st.lock);
   st.thread = g_thread_new("treecamerasrc", supervise, self);
 }
