@@ -22,9 +22,23 @@
 # The fake images are not trees: this checks the supervision and the pairing, not measurements.
 # Under the sanitizers (TREESTEREO_SANITIZER_PRELOAD set) the analysis runs several times slower:
 # the resume (2 s) and exit (10 s) limits become 10 s and 60 s; everything else is checked.
+# The resume limit is the one check that a stall of the shared host can fail on its own (the fake
+# cameras are processes beside the tool): a run that fails only on it is run once more, and the
+# test fails when the second run does too. Every other check fails at once. On a failure the
+# report includes treecamerasrc's log (each attempt and why it failed).
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 measure=${1:?usage: test-measure-camera-loss.sh TREESTEREO_MEASURE}
+if [ -z "${TREESTEREO_CAMERA_LOSS_RUN:-}" ]; then
+  TREESTEREO_CAMERA_LOSS_RUN=1 bash "$0" "$@"
+  rc=$?
+  [ "$rc" -eq 3 ] || exit "$rc"
+  echo "only the resume time failed; running the test again"
+  TREESTEREO_CAMERA_LOSS_RUN=2 bash "$0" "$@"
+  rc=$?
+  [ "$rc" -eq 3 ] && { echo "FAIL: pairs resumed too late after a return (in two runs)"; exit 1; }
+  exit "$rc"
+fi
 . "$here/fake-gv-cameras.sh"
 fake_cameras_enter_netns "$@"
 for e in bayer2rgb treecamerasrc; do
@@ -54,6 +68,7 @@ pairs() {
 }
 fail() {
   echo "--- tool stderr:"; cat "$tmp/run.log"
+  echo "--- treecamerasrc's log (GST_DEBUG=treecamerasrc:5):"; cat "$tmp/debug.log" 2>/dev/null
   echo "--- events:"; cat "$tmp/events.log"
   echo "FAIL: $*"
   [ -n "${mpid:-}" ] && kill -KILL "$mpid" 2>/dev/null
@@ -82,6 +97,8 @@ kill_right() {
 }
 
 : >"$tmp/events.log"
+# the supervisors' attempts, for a failure's report
+GST_DEBUG="${GST_DEBUG:-treecamerasrc:5}" GST_DEBUG_NO_COLOR=1 GST_DEBUG_FILE="$tmp/debug.log" \
 "$measure" --camera-left 127.0.0.1 --camera-right 127.0.0.2 --calibration "$tmp/rig.yml" \
   --camera-caps video/x-bayer,framerate=10/1 --latency 250 --max-skew 75 --pair-queue 4 \
   --camera-timeout 1000 --reconnect 250 --sections "$tmp/sections.jsonl" \
@@ -95,7 +112,7 @@ for k in 1 2; do
   t_kill=$(now)
   before=$(pairs)
   echo "gap $k: killed at $t_kill after $before pairs" >>"$tmp/events.log"
-  sleep 3
+  sleep "${TREESTEREO_GAP_S:-3}"
   alive || { wait "$mpid"; fail "the tool ended (status $?) during gap $k"; }
   restart_right
   t_back=$(now)
@@ -160,10 +177,16 @@ assert fallback, 'spraycontrol never went to its fallback state during the gaps'
 EOF
 grep -q "camera '127.0.0.2' lost" "$tmp/run.log" || fail "no warning naming the lost camera on stderr"
 grep -q "camera-lost lines" "$tmp/run.log" || fail "the summary does not count the camera-lost lines"
+late=
 for r in "${resume[@]}"; do
-  awk -v r="$r" -v l="$resume_limit" 'BEGIN { exit !(r <= l) }' ||
-    fail "pairs resumed ${r} s after a return (> $resume_limit s)"
+  awk -v r="$r" -v l="$resume_limit" 'BEGIN { exit !(r <= l) }' || late="$late $r"
 done
+if [ -n "$late" ]; then
+  echo "--- tool stderr:"; cat "$tmp/run.log"
+  echo "--- treecamerasrc's log (GST_DEBUG=treecamerasrc:5):"; cat "$tmp/debug.log" 2>/dev/null
+  echo "--- events:"; cat "$tmp/events.log"
+  echo "resume time: pairs resumed${late} s after a return (> $resume_limit s)"
+fi
 
 # --reconnect 0: the loss ends the run
 restart_right
@@ -202,4 +225,5 @@ grep -q "error from" "$tmp/run0.log" && grep -q "127.0.0.2\|camera-right" "$tmp/
 echo "--reconnect 0: exit status 1: $(grep -m1 'error from' "$tmp/run0.log")" >>"$tmp/events.log"
 
 cat "$tmp/events.log"
+[ -z "$late" ] || exit 3
 echo "OK: the right camera lost and back twice, pairs resumed after ${resume[*]} s, exit 0 on SIGINT during a reconnect"
