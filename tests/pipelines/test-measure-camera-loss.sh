@@ -112,7 +112,7 @@ for k in 1 2; do
   t_kill=$(now)
   before=$(pairs)
   echo "gap $k: killed at $t_kill after $before pairs" >>"$tmp/events.log"
-  sleep "${TREESTEREO_GAP_S:-3}"
+  sleep 3
   alive || { wait "$mpid"; fail "the tool ended (status $?) during gap $k"; }
   restart_right
   t_back=$(now)
