@@ -231,6 +231,31 @@ TEST(OverlayDraw, TextPanelChangesOnlyItsCornerAndScalesWithTheFrame)
   EXPECT_EQ(overlay_scale({640, 480}).line, 2);
 }
 
+TEST(OverlayDraw, TextPanelGivesWayToATreeInFrontAtTheLeftEdge)
+{
+  const ChannelOrder rgb{0, 1, 2, 3};
+  OverlayScene scene;
+  scene.text = {"distance 2.03 m", "height 1.20 m", "width 0.70 m"};
+  const auto panel_at = [&](const Silhouette &front) {
+    scene.views[LEFT] = front;
+    cv::Mat img(480, 2 * 640, CV_8UC3, cv::Scalar(40, 90, 60));
+    const cv::Mat before = img.clone();
+    draw_overlay(img, rgb, scene, only(false, false, false, false, true));
+    return cv::boundingRect(changed(img, before));
+  };
+  // No tree, or a tree in the middle: the top left corner.
+  EXPECT_LT(panel_at(Silhouette{}).x, 40);
+  EXPECT_LT(panel_at(silhouette_square(320, 240, 100)).x, 40);
+  // A tree at the left edge: the top right corner of the left view, clear of the tree.
+  const Silhouette left_edge = silhouette_square(150, 200, 140);
+  const cv::Rect moved = panel_at(left_edge);
+  EXPECT_LE(moved.br().x, 640);
+  EXPECT_GT(moved.x, 320);
+  EXPECT_EQ((moved & left_edge.bbox).area(), 0);
+  // A tree that fills the view: the corner stays the top left (no better place).
+  EXPECT_LT(panel_at(silhouette_square(320, 240, 320)).x, 40);
+}
+
 TEST(OverlayDraw, NothingToDrawLeavesTheFrameAlone)
 {
   cv::Mat img = background(2);

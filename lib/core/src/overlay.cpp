@@ -171,7 +171,9 @@ void draw_bands(const Painter &p, const OverlayScene &scene)
   }
 }
 
-// The panel at the top left of the left view: the text lines, then the depth legend.
+// The panel at a top corner of the left view: the text lines, then the depth legend. The top
+// left, unless the tree in front (the left silhouette's box) is there and the top right covers
+// less of it: a tree at the view's left edge keeps its crown in sight.
 void draw_panel(const Painter &p, const OverlayScene &scene, bool legend)
 {
   const OverlayScale &sc = p.scale;
@@ -191,8 +193,16 @@ void draw_panel(const Painter &p, const OverlayScene &scene, bool legend)
     width = std::max(width, labels + 2 * pad);
   }
   const int rows = int(scene.text.size()) + (legend ? 2 : 0);
-  const cv::Rect panel = cv::Rect(pad, pad, width + 2 * pad, rows * line_h + 2 * pad) &
-                         cv::Rect(0, 0, p.view_width, p.image.rows);
+  const cv::Rect view(0, 0, p.view_width, p.image.rows);
+  cv::Rect panel = cv::Rect(pad, pad, width + 2 * pad, rows * line_h + 2 * pad) & view;
+  const Silhouette &front = scene.views[LEFT];
+  if (front.present && front.bbox.area() > 0) {
+    const cv::Rect right =
+        cv::Rect(p.view_width - pad - (width + 2 * pad), pad, width + 2 * pad, rows * line_h + 2 * pad) &
+        view;
+    if ((right & front.bbox).area() < (panel & front.bbox).area())
+      panel = right;
+  }
   if (panel.area() == 0)
     return;
   // Darken the colour channels only: an alpha channel stays as it was.
