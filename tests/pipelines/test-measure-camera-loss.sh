@@ -66,10 +66,13 @@ pairs() {
   c=$(grep -c '"frame"' "$tmp/r.jsonl" 2>/dev/null)
   echo "${c:-0}"
 }
-fail() {
+report() {
   echo "--- tool stderr:"; cat "$tmp/run.log"
   echo "--- treecamerasrc's log (GST_DEBUG=treecamerasrc:5):"; cat "$tmp/debug.log" 2>/dev/null
   echo "--- events:"; cat "$tmp/events.log"
+}
+fail() {
+  report
   echo "FAIL: $*"
   [ -n "${mpid:-}" ] && kill -KILL "$mpid" 2>/dev/null
   exit 1
@@ -182,9 +185,7 @@ for r in "${resume[@]}"; do
   awk -v r="$r" -v l="$resume_limit" 'BEGIN { exit !(r <= l) }' || late="$late $r"
 done
 if [ -n "$late" ]; then
-  echo "--- tool stderr:"; cat "$tmp/run.log"
-  echo "--- treecamerasrc's log (GST_DEBUG=treecamerasrc:5):"; cat "$tmp/debug.log" 2>/dev/null
-  echo "--- events:"; cat "$tmp/events.log"
+  report
   echo "resume time: pairs resumed${late} s after a return (> $resume_limit s)"
 fi
 
