@@ -820,11 +820,13 @@ void driveby_sweep(const Options &o)
       std::vector<GstTreeStereoSectionCommand> commands;
       const RowMapParams map_params;
       SprayTruth spray_truth(-3000, 1000 * (last + 3), map_params);
+      std::vector<int> front(std::size_t(run.frames), 0); // each frame's tree in front
       for (int k = 0; k < run.frames; ++k) {
         cv::Mat rgb;
         GroundTruth gt;
         renderer.render(LEFT, std::uint64_t(k), rgb, &gt);
         spray_truth.add(gt, renderer.travel_mm(std::uint64_t(k)), run.c.params().camera_height_mm);
+        front[std::size_t(k)] = gt.front_tree;
       }
       const auto on_frame = [&](int frame, const std::vector<GstBuffer *> &buf) {
         // With --masks: every frame's 3D canopy (red) against the true near row (blue).
@@ -862,6 +864,16 @@ void driveby_sweep(const Options &o)
                          "%.3f width %.3f clipped %u\n",
                          (unsigned long long)run.c.seed, speed, frame, m->metrics.height_m,
                          m->metrics.width_m, m->metrics.clipped);
+          // The canopy's top and bottom edges (the bands', camera Y, m) against the tree in
+          // front's true ones.
+          if (m->metrics.tree_present && m->metrics.n_bands > 0)
+            for (const RowTree &t : truth)
+              if (t.index == front[std::size_t(frame)])
+                std::fprintf(stderr, "driveby seed=%llu speed=%.1f frame %d: tree %d edges top "
+                             "%.3f (%.3f) bottom %.3f (%.3f)\n",
+                             (unsigned long long)run.c.seed, speed, frame, t.index,
+                             m->metrics.bands[0].top_m, t.top_m,
+                             m->metrics.bands[m->metrics.n_bands - 1].bottom_m, t.bottom_m);
           std::fprintf(stderr, "driveby seed=%llu speed=%.1f frame %d: travel %.4f m (%s, truth "
                        "%.4f), position %.3f m (truth %.3f)\n",
                        (unsigned long long)run.c.seed, speed, frame, m->metrics.travel_m,

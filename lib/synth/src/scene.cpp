@@ -1028,6 +1028,8 @@ std::vector<RowTree> SceneRenderer::row_trees(double from_mm, double to_mm) cons
     r.end_m = hi[0] / 1000.0;
     r.width_m = (hi[0] - lo[0]) / 1000.0;
     r.height_m = (hi[1] - lo[1]) / 1000.0;
+    r.top_m = lo[1] / 1000.0;
+    r.bottom_m = hi[1] / 1000.0;
     r.depth_m = (hi[2] - lo[2]) / 1000.0;
     r.distance_m = t.z / 1000.0;
     out.push_back(r);

@@ -125,7 +125,8 @@ struct RowTree {
   double x_m = 0;                // trunk axis
   double start_m = 0, end_m = 0; // the canopy's extent along x (exact union of its clusters)
   double height_m = 0, width_m = 0, depth_m = 0; // canopy extents
-  double distance_m = 0;                         // trunk axis Z
+  double top_m = 0, bottom_m = 0; // the canopy's highest and lowest Y (camera axes, y down)
+  double distance_m = 0;          // trunk axis Z
 };
 
 // The truth of one rendered view of one frame.
