@@ -194,12 +194,11 @@ void draw_panel(const Painter &p, const OverlayScene &scene, bool legend)
   }
   const int rows = int(scene.text.size()) + (legend ? 2 : 0);
   const cv::Rect view(0, 0, p.view_width, p.image.rows);
-  cv::Rect panel = cv::Rect(pad, pad, width + 2 * pad, rows * line_h + 2 * pad) & view;
+  const cv::Size size(width + 2 * pad, rows * line_h + 2 * pad);
+  cv::Rect panel = cv::Rect({pad, pad}, size) & view;
   const Silhouette &front = scene.views[LEFT];
   if (front.present && front.bbox.area() > 0) {
-    const cv::Rect right =
-        cv::Rect(p.view_width - pad - (width + 2 * pad), pad, width + 2 * pad, rows * line_h + 2 * pad) &
-        view;
+    const cv::Rect right = cv::Rect({p.view_width - pad - size.width, pad}, size) & view;
     if ((right & front.bbox).area() < (panel & front.bbox).area())
       panel = right;
   }
