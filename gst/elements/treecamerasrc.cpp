@@ -97,6 +97,7 @@ struct State {
   bool fault = false;            // the running aravissrc posted an error
   std::string fault_reason;
   bool got_buffer = false; // Starting: its first frame came
+  gint64 stream_at = 0;    // Starting: when its stream started (its caps set), 0 = not yet
   // A camera of this run has streamed with these caps: a not-negotiated flow after that is a
   // camera caught while it (re)starts or goes away, not caps it cannot give.
   bool streamed = false;
@@ -216,6 +217,20 @@ static GstPadProbeReturn source_probe(GstPad *pad, GstPadProbeInfo *info, gpoint
     return GST_PAD_PROBE_OK;
   }
   GstEvent *event = GST_PAD_PROBE_INFO_EVENT(info);
+  if (event && GST_EVENT_TYPE(event) == GST_EVENT_CAPS) {
+    // aravissrc configures the camera and starts its acquisition in set_caps, before this
+    // event: from now on the camera has the timeout for its first frame
+    g_mutex_lock(&st.lock);
+    GstObject *parent = GST_OBJECT_PARENT(pad);
+    if (parent && (parent == GST_OBJECT(st.opening) || pad == st.source_pad) && !st.stream_at) {
+      st.stream_at = g_get_monotonic_time();
+      GST_DEBUG_OBJECT(self, "stream started %.2f s after the camera opened",
+                       st.phase == Phase::Starting ? (st.stream_at - st.started) / 1e6 : 0.0);
+      g_cond_broadcast(&st.cond);
+    }
+    g_mutex_unlock(&st.lock);
+    return GST_PAD_PROBE_OK;
+  }
   if (event && GST_EVENT_TYPE(event) == GST_EVENT_EOS) {
     GST_DEBUG_OBJECT(self, "the camera's EOS stays in the bin");
     return GST_PAD_PROBE_DROP;
@@ -251,6 +266,8 @@ static void remove_source(GstTreeCameraSrc *self, GstElement *src)
 }
 
 #define REAPER_WAIT_US (2 * G_USEC_PER_SEC)
+// The longest a camera's stream set-up may take before the first-frame timeout applies
+#define STREAM_SETUP_US (5 * G_USEC_PER_SEC)
 
 struct Reap {
   GstTreeCameraSrc *self; // a ref
@@ -379,6 +396,7 @@ static bool open_source(GstTreeCameraSrc *self, std::string &why)
     g_mutex_lock(&st.lock);
     const bool playing = st.playing && st.running && !st.eos;
     st.got_buffer = false;
+    st.stream_at = 0;
     st.fault = false;
     g_mutex_unlock(&st.lock);
     if (playing) {
@@ -503,8 +521,15 @@ static gpointer supervise(gpointer data)
       g_mutex_lock(&st.lock);
       continue;
     }
-    const gint64 since = st.phase == Phase::Starting ? st.started : st.last_buffer;
-    const gint64 deadline = since + gint64(st.timeout) * 1000;
+    // A newly opened camera has the timeout for its first frame from its stream's start; the
+    // configuration before that (aravissrc's set_caps: many register writes, stretched by a
+    // loaded host) has up to STREAM_SETUP_US more, and a camera gone meanwhile fails it
+    // with aravis's error at once.
+    gint64 deadline = (st.phase == Phase::Starting ? st.started : st.last_buffer) +
+                      gint64(st.timeout) * 1000;
+    if (st.phase == Phase::Starting)
+      deadline = st.stream_at ? st.stream_at + gint64(st.timeout) * 1000
+                              : std::max(deadline, st.started + STREAM_SETUP_US);
     if (!st.fault && now < deadline) {
       g_cond_wait_until(&st.cond, &st.lock, deadline);
       continue;
@@ -806,6 +831,8 @@ static void set_playing(GstTreeCameraSrc *self, bool playing)
   st.playing = playing;
   // time from now: a pause is no gap
   st.started = st.last_buffer = g_get_monotonic_time();
+  if (st.stream_at)
+    st.stream_at = st.started;
   GstElement *src = st.source ? GST_ELEMENT(gst_object_ref(st.source)) : nullptr;
   g_cond_broadcast(&st.cond);
   g_mutex_unlock(&st.lock);
@@ -905,7 +932,8 @@ static void gst_tree_camera_src_class_init(GstTreeCameraSrcClass *klass)
                TS_FIELD(features), kRwReady);
   props.uinteger("timeout", "Timeout",
                  "The camera is lost when no frame came for this long (ms); also the "
-                 "time a newly opened camera has for its first frame",
+                 "time a newly opened camera has for its first frame once its stream "
+                 "started (its set-up before that may take 5 s)",
                  100, 600000, DEFAULT_TIMEOUT, TS_FIELD(timeout), kRwReady);
   props.uinteger("reconnect-interval", "Reconnect interval",
                  "Wait before the first attempt to open a lost camera again (ms), doubled "

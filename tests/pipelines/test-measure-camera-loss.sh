@@ -21,7 +21,8 @@
 #     once it has planned, which may start after the first gap).
 # The fake images are not trees: this checks the supervision and the pairing, not measurements.
 # Under the sanitizers (TREESTEREO_SANITIZER_PRELOAD set) the analysis runs several times slower:
-# the resume (2 s) and exit (10 s) limits become 10 s and 60 s; everything else is checked.
+# the resume (2 s) and exit (10 s) limits become 10 s and 60 s, and a stall of the left camera
+# (reported by the tool as a loss of it) is listed, not failed; everything else is checked.
 # The resume limit is the one check that a stall of the shared host can fail on its own (the fake
 # cameras are processes beside the tool): a run that fails only on it is run once more, and the
 # test fails when the second run does too. Every other check fails at once. On a failure the
@@ -69,6 +70,7 @@ pairs() {
 report() {
   echo "--- tool stderr:"; cat "$tmp/run.log"
   echo "--- treecamerasrc's log (GST_DEBUG=treecamerasrc:5):"; cat "$tmp/debug.log" 2>/dev/null
+  echo "--- the cameras' status lines in the JSON:"; grep '"status"' "$tmp/r.jsonl" 2>/dev/null
   echo "--- events:"; cat "$tmp/events.log"
 }
 fail() {
@@ -152,12 +154,17 @@ echo "gap 3: SIGINT at $t_int, the tool ended after $(awk -v a="$(now)" -v b="$t
 mpid=
 
 python3 - "$tmp/r.jsonl" "$tmp/sections.jsonl" "$tmp/events.log" <<'EOF' || fail "JSON check"
-import json, sys
+import json, os, sys
 lines = [json.loads(l) for l in open(sys.argv[1])]  # every line parses
 pairs = [o for o in lines if 'frame' in o]
-lost = [o for o in lines if o.get('status') == 'camera-lost']
-back = [o for o in lines if o.get('status') == 'camera-back']
-assert all(o['camera'] == 'right' for o in lost + back), 'only the right camera was missing'
+status = [o for o in lines if 'status' in o]
+left = [o for o in status if o['camera'] != 'right']
+# Under the sanitizers the left camera may stall past the 1 s timeout on a loaded host: the tool
+# then says so, which is right, and the checks below follow the right camera only.
+sanitizer = bool(os.environ.get('TREESTEREO_SANITIZER_PRELOAD'))
+assert sanitizer or not left, f'only the right camera was missing, yet: {left}'
+lost = [o for o in status if o['status'] == 'camera-lost' and o['camera'] == 'right']
+back = [o for o in status if o['status'] == 'camera-back' and o['camera'] == 'right']
 assert len(back) == 2, f'{len(back)} camera-back lines, 2 returns'
 assert len(lost) >= 3, f'{len(lost)} camera-lost lines for 3 gaps'
 pts = [o['pts_ns'] for o in pairs]
@@ -166,13 +173,18 @@ assert all(b > a for a, b in zip(pts, pts[1:])), 'pair pts_ns not increasing'
 # camera was missing (3 s, plus the detection and the reopening), not a restart at 0; camera-lost
 # lines fall in each (running time, as the pairs')
 steps = [(i, b - a) for i, (a, b) in enumerate(zip(pts, pts[1:])) if b - a > 1.5e9]
+within = lambda o, i: o['pts_ns'] is not None and pts[i] < o['pts_ns'] < pts[i + 1]
+if left:  # a step of the left camera's alone is no gap of the right one's
+    steps = [(i, g) for i, g in steps if any(within(o, i) for o in lost)]
 assert len(steps) == 2, f'{len(steps)} gaps in the pairs, 2 returns'
 gaps = [g for _, g in steps]
 for i, g in steps:
     assert 2.5e9 <= g <= 15e9, f'pts gap {g/1e9:.2f} s over a 3 s loss: running time not continuous'
-    assert any(pts[i] < o['pts_ns'] < pts[i + 1] for o in lost), 'no camera-lost line in a gap'
+    assert any(within(o, i) for o in lost), 'no camera-lost line in a gap'
 fallback = [o for o in map(json.loads, open(sys.argv[2])) if o.get('fallback')]
 with open(sys.argv[3], 'a') as ev:
+    if left:
+        ev.write(f'the left camera stalled (sanitizer build, loaded host): {left}\n')
     ev.write(f'pairs {len(pairs)}, camera-lost lines {len(lost)}, camera-back lines {len(back)}, '
              f'pts gaps {", ".join(f"{g/1e9:.2f}" for g in gaps)} s, '
              f'spraycontrol fallback commands {len(fallback)}\n')
