@@ -15,8 +15,9 @@
  * #treecamerasrc:reconnect-interval ms, doubling the wait after each failed attempt up to
  * #treecamerasrc:reconnect-max. Frames flow again through the same src pad when the camera is
  * back; their stamps stay the pipeline's running time (the new aravissrc gets the bin's clock and
- * base time), so a stereorectify downstream pairs them again. The camera's own EOS (after an
- * error) never leaves the bin; an EOS sent to the bin (Ctrl-C in an application) goes down the
+ * base time), so a stereorectify downstream pairs them again. The camera's own EOS after an
+ * error never leaves the bin; one without an error (downstream ended the stream: a flow EOS) goes
+ * on and ends it. An EOS sent to the bin (Ctrl-C in an application) goes down the
  * chain at once, whether the camera is streaming or missing.
  *
  * Applications follow the camera through `treestereo-camera` element messages:
@@ -196,8 +197,8 @@ static guint backoff_ms(const State &st, guint n)
   return guint(std::min<guint64>(ms, std::max(st.interval, st.interval_max)));
 }
 
-/* On the aravissrc's src pad: frames mark the camera alive; its EOS (what a GstBaseSrc pushes
- * after an error) is a lost camera, not the end of the stream, and never leaves the bin. */
+/* On the aravissrc's src pad: frames mark the camera alive, the CAPS event its stream's start;
+ * its EOS after an error is a lost camera, not the end of the stream, and never leaves the bin. */
 static GstPadProbeReturn source_probe(GstPad *pad, GstPadProbeInfo *info, gpointer data)
 {
   GstTreeCameraSrc *self = GST_TREE_CAMERA_SRC(data);
@@ -232,6 +233,21 @@ static GstPadProbeReturn source_probe(GstPad *pad, GstPadProbeInfo *info, gpoint
     return GST_PAD_PROBE_OK;
   }
   if (event && GST_EVENT_TYPE(event) == GST_EVENT_EOS) {
+    // After an error aravissrc posts it (handle_message, in this thread: fault set) and then
+    // pushes EOS. An EOS of the streaming aravissrc with no error is the stream's end asked for
+    // downstream (a flow EOS: a sink's num-buffers, an application's appsink): it goes on, and
+    // nothing is retried after it.
+    g_mutex_lock(&st.lock);
+    const bool end = pad == st.source_pad && !st.fault && st.got_buffer;
+    if (end) {
+      st.eos = true;
+      g_cond_broadcast(&st.cond);
+    }
+    g_mutex_unlock(&st.lock);
+    if (end) {
+      GST_DEBUG_OBJECT(self, "the stream's end, asked for downstream");
+      return GST_PAD_PROBE_OK;
+    }
     GST_DEBUG_OBJECT(self, "the camera's EOS stays in the bin");
     return GST_PAD_PROBE_DROP;
   }
