@@ -97,6 +97,7 @@ struct State {
   std::string open_error;        // the error it posted
   bool fault = false;            // the running aravissrc posted an error
   std::string fault_reason;
+  std::string first_error; // the first error of this attempt's aravissrc (kept past the fault)
   bool got_buffer = false; // Starting: its first frame came
   gint64 stream_at = 0;    // Starting: when its stream started (its caps set), 0 = not yet
   // A camera of this run has streamed with these caps: a not-negotiated flow after that is a
@@ -383,6 +384,7 @@ static bool open_source(GstTreeCameraSrc *self, std::string &why)
   g_mutex_lock(&st.lock);
   st.opening = src;
   st.open_error.clear();
+  st.first_error.clear();
   const std::string camera = st.camera;
   g_mutex_unlock(&st.lock);
   gst_bin_add(GST_BIN(self), src);
@@ -617,6 +619,7 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
     if (details)
       gst_structure_get_int(details, "flow-return", &flow);
     bool keep = false;
+    std::string config_fault; // set: a configuration fault, posted as the bin's own error
     GstObject *from = GST_MESSAGE_SRC(msg);
     // an aravissrc: the current one, the one being opened, or one being removed (perhaps
     // already out of the bin: its message was on its way)
@@ -627,13 +630,21 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
     g_mutex_lock(&st.lock);
     const bool from_opening = st.opening && from == GST_OBJECT(st.opening);
     const bool from_source = st.source && from == GST_OBJECT(st.source);
-    if (from_camera && (st.eos || (!from_opening && !from_source))) {
-      // the end was asked for, or an aravissrc already taken off the chain (lost, or stopping:
-      // unlinked, it fails with not-linked): a camera failing now changes nothing
-      keep = true;
-    } else if ((from_opening || from_source) && flow == GST_FLOW_NOT_NEGOTIATED &&
-               !st.streamed) {
+    if ((from_opening || from_source) && st.first_error.empty())
+      st.first_error = err->message;
+    if (from_camera && st.eos) {
+      keep = true; // the end was asked for: a camera failing now changes nothing
+    } else if (from_camera && flow == GST_FLOW_NOT_NEGOTIATED && !st.streamed) {
+      // also from an aravissrc the supervisor has just taken off the chain for the error that
+      // came before this one (set_caps's), which it may see first
       st.phase = Phase::Stopped; // goes to the bus: the caps are wrong, retrying cannot help
+      // aravissrc's own error before it says why (set_caps: "[Gain] Not found"); its flow error
+      // alone says only "Internal data stream error"
+      config_fault = st.first_error.empty() ? std::string(err->message) : st.first_error;
+    } else if (from_camera && !from_opening && !from_source) {
+      // an aravissrc already taken off the chain (lost, or stopping: unlinked, it fails with
+      // not-linked): a camera failing now changes nothing
+      keep = true;
     } else if (from_opening) {
       st.open_error = err->message;
       keep = st.interval > 0;
@@ -649,6 +660,23 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
     if (keep)
       GST_INFO_OBJECT(self, "kept off the bus: %s", err->message);
     g_error_free(err);
+    if (!config_fault.empty()) {
+      GST_OBJECT_LOCK(self);
+      gchar *caps = self->settings.caps ? gst_caps_to_string(self->settings.caps) : nullptr;
+      const std::string features = self->settings.features;
+      GST_OBJECT_UNLOCK(self);
+      g_mutex_lock(&st.lock);
+      const std::string camera = st.camera;
+      g_mutex_unlock(&st.lock);
+      GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
+                        ("Camera '%s' cannot stream as configured: %s", camera.c_str(),
+                         config_fault.c_str()),
+                        ("check treecamerasrc's caps (%s) and features (%s); retrying cannot help",
+                         caps ? caps : "none", features.empty() ? "none" : features.c_str()));
+      g_free(caps);
+      gst_message_unref(msg);
+      return;
+    }
     if (keep) {
       gst_message_unref(msg);
       return;

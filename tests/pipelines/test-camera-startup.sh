@@ -10,7 +10,8 @@
 #     start, not from the opening;
 #   - frames reached the sink;
 #   - a flow EOS from downstream (fakesink num-buffers=5) ends the pipeline: its EOS reaches the
-#     bus, no loss is reported.
+#     bus, no loss is reported;
+#   - a feature the camera does not have ends the pipeline with an error naming it.
 #   TREESTEREO_STARTUP_WRITES  feature writes in the set-up (default 6500: about 0.5 s with
 #                              the fake camera; the one argument must stay under 128 KiB)
 set -uo pipefail
@@ -62,4 +63,12 @@ rc=$?
 if grep -q 'state=(string)lost\|WARNING' "$tmp/out.log"; then
   report; echo "FAIL: the end asked for downstream was taken for a loss"; exit 1
 fi
-echo "OK: a ${setup} s set-up, longer than the ${timeout_ms} ms timeout, was no loss; a flow EOS from downstream ended the pipeline"
+# A feature the camera does not have: an error naming it ends the pipeline (aravissrc's flow error
+# alone would say "Internal data stream error"), with no retrying.
+timeout -k 5 20 gst-launch-1.0 treecamerasrc camera=127.0.0.1 caps=video/x-bayer,framerate=10/1 \
+  features="NoSuchFeature=1" ! fakesink >"$tmp/out.log" 2>&1
+rc=$?
+[ "$rc" -eq 1 ] && grep -q "cannot stream as configured.*NoSuchFeature" "$tmp/out.log" ||
+  { cat "$tmp/out.log"; echo "FAIL: a missing feature: exit status $rc, no error naming it"; exit 1; }
+echo "$(grep -m1 'cannot stream as configured' "$tmp/out.log")"
+echo "OK: a ${setup} s set-up, longer than the ${timeout_ms} ms timeout, was no loss; a flow EOS from downstream ended the pipeline; a missing feature was named"
