@@ -226,8 +226,11 @@ static GstPadProbeReturn source_probe(GstPad *pad, GstPadProbeInfo *info, gpoint
     GstObject *parent = GST_OBJECT_PARENT(pad);
     if (parent && (parent == GST_OBJECT(st.opening) || pad == st.source_pad) && !st.stream_at) {
       st.stream_at = g_get_monotonic_time();
-      GST_DEBUG_OBJECT(self, "stream started %.2f s after the camera opened",
-                       st.phase == Phase::Starting ? (st.stream_at - st.started) / 1e6 : 0.0);
+      if (st.phase == Phase::Starting)
+        GST_DEBUG_OBJECT(self, "stream started %.2f s after the camera opened",
+                         (st.stream_at - st.started) / 1e6);
+      else
+        GST_DEBUG_OBJECT(self, "stream started while the camera was being opened");
       g_cond_broadcast(&st.cond);
     }
     g_mutex_unlock(&st.lock);
@@ -543,11 +546,12 @@ static gpointer supervise(gpointer data)
     // configuration before that (aravissrc's set_caps: many register writes, stretched by a
     // loaded host) has up to STREAM_SETUP_US more, and a camera gone meanwhile fails it
     // with aravis's error at once.
-    gint64 deadline = (st.phase == Phase::Starting ? st.started : st.last_buffer) +
-                      gint64(st.timeout) * 1000;
-    if (st.phase == Phase::Starting)
-      deadline = st.stream_at ? st.stream_at + gint64(st.timeout) * 1000
-                              : std::max(deadline, st.started + STREAM_SETUP_US);
+    const gint64 timeout_us = gint64(st.timeout) * 1000;
+    gint64 deadline = st.started + std::max(timeout_us, gint64(STREAM_SETUP_US));
+    if (st.phase == Phase::Streaming)
+      deadline = st.last_buffer + timeout_us;
+    else if (st.stream_at)
+      deadline = st.stream_at + timeout_us;
     if (!st.fault && now < deadline) {
       g_cond_wait_until(&st.cond, &st.lock, deadline);
       continue;
@@ -620,6 +624,7 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
       gst_structure_get_int(details, "flow-return", &flow);
     bool keep = false;
     std::string config_fault; // set: a configuration fault, posted as the bin's own error
+    std::string camera;
     GstObject *from = GST_MESSAGE_SRC(msg);
     // an aravissrc: the current one, the one being opened, or one being removed (perhaps
     // already out of the bin: its message was on its way)
@@ -641,6 +646,7 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
       // aravissrc's own error before it says why (set_caps: "[Gain] Not found"); its flow error
       // alone says only "Internal data stream error"
       config_fault = st.first_error.empty() ? std::string(err->message) : st.first_error;
+      camera = st.camera;
     } else if (from_camera && !from_opening && !from_source) {
       // an aravissrc already taken off the chain (lost, or stopping: unlinked, it fails with
       // not-linked): a camera failing now changes nothing
@@ -665,9 +671,6 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
       gchar *caps = self->settings.caps ? gst_caps_to_string(self->settings.caps) : nullptr;
       const std::string features = self->settings.features;
       GST_OBJECT_UNLOCK(self);
-      g_mutex_lock(&st.lock);
-      const std::string camera = st.camera;
-      g_mutex_unlock(&st.lock);
       GST_ELEMENT_ERROR(self, CORE, NEGOTIATION,
                         ("Camera '%s' cannot stream as configured: %s", camera.c_str(),
                          config_fault.c_str()),
