@@ -251,6 +251,60 @@ TEST(Metrics, ExtremePointsReachAClusterBehindTheSilhouettesEdge)
   EXPECT_GT(first.height_m, height * 1.05);
 }
 
+// A union of spheres, the first hit of a ray with any of them: centre (mm) and radius.
+Caster balls_caster(const std::vector<cv::Vec4d> &balls)
+{
+  return [balls](const cv::Vec3d &r) -> std::optional<double> {
+    std::optional<double> best;
+    const double A = r.dot(r);
+    for (const cv::Vec4d &b : balls) {
+      const cv::Vec3d c(b[0], b[1], b[2]);
+      const double B = r.dot(c), D = B * B - A * (c.dot(c) - b[3] * b[3]);
+      if (D < 0)
+        continue;
+      const double t = (B - std::sqrt(D)) / A;
+      if (!best || t < *best)
+        best = t;
+    }
+    return best;
+  };
+}
+
+// The top of a crown made of clusters: the cluster that forms the silhouette's top (r 120 mm,
+// 2.1 m away) has another beside it, 60-200 mm in front, whose top projects 15-35 px lower, on a
+// body below both. The points within the outer 10 % of the height below the top are the top
+// cluster's and the nearer one's. Fitted together against their distance from the top line,
+// the nearer cluster's points make the depth fall steeply away from it, and the extrapolation
+// puts the limb behind the top cluster: the height read up to 1.7 % high, and more the farther
+// in front the neighbour stands. The cap (the columns about the top one until the outline's
+// first valley) leaves the neighbour out: the height is then what the top cluster and the body
+// alone give, whatever the neighbour.
+TEST(Metrics, LimbDepthFollowsEachClustersOwnBoundary)
+{
+  const StereoGeometry g = camera();
+  const cv::Vec4d top(0, -430, 2100, 120), body(0, -100, 2050, 350);
+  const double height = (body[1] + body[3] - (top[1] - top[3])) * 1e-3;
+  MetricsParams p;
+  const Scene alone = cast(g, balls_caster({top, body}), 3);
+  const TreeMetrics m0 = compute_tree_metrics(alone.sil, alone.points, g, p);
+  ASSERT_TRUE(m0.tree_present);
+  EXPECT_LT(rel(m0.height_m, height), 0.01);
+  for (double dz : {60.0, 100.0, 150.0, 200.0})
+    for (double dy : {15.0, 25.0, 35.0}) {
+      // The neighbour's top ray dy px below the top cluster's.
+      const double z = top[2] - dz, r = 130;
+      const double y = (top[1] - top[3]) / top[2] * z + dy * z / g.fy + r;
+      const Scene s = cast(g, balls_caster({top, {210, y, z, r}, body}), 3);
+      const TreeMetrics m = compute_tree_metrics(s.sil, s.points, g, p);
+      ASSERT_TRUE(m.tree_present);
+      std::printf("neighbour %3.0f mm in front, %2.0f px lower: height %.4f m (%.4f without it), "
+                  "truth %.4f\n",
+                  dz, dy, m.height_m, m0.height_m, height);
+      EXPECT_LT(std::abs(m.height_m - m0.height_m), 0.002) << dz << " mm, " << dy << " px";
+      EXPECT_LT(rel(m.height_m, height), 0.01);
+    }
+}
+
 // The paper's depth noise (1.36 cm sd at ~2 m) and 300 points, like a frame of SIFT matches.
 TEST(Metrics, SphereWithPaperDepthNoise)
 {

@@ -231,84 +231,171 @@ bool robust_line_fit(const std::vector<double> &x, const std::vector<double> &z,
   return std::isfinite(a0) && std::isfinite(a1);
 }
 
+// What side_depth() needs of the silhouette's outline, per edge (left, right, top, bottom) and
+// per point:
+// - inset: the point's distance (px) inside the silhouette's boundary on its row (left, right)
+//   or column (top, bottom); -1 when off the silhouette's rows or columns;
+// - cap: whether the point lies on the rows or columns of the edge's cap: the run of them about
+//   the one that forms the edge along which the boundary keeps falling away from the edge. The
+//   run ends where the outline turns back towards the edge by more than kCapTolerance of the
+//   extent (at least 2 px): a valley, past which another leaf cluster forms the boundary.
+struct EdgeOutline {
+  std::array<std::vector<double>, 4> inset;
+  std::array<std::vector<char>, 4> cap;
+};
+
+constexpr double kCapTolerance = 0.02;
+
+// The run about the most extreme entry of `at` (smaller is more extreme; `valid` false where
+// the outline has no boundary) along which it does not come back by more than `tol`.
+std::vector<char> cap_run(const std::vector<int> &at, const std::vector<char> &valid, double tol)
+{
+  std::vector<char> in(at.size(), 0);
+  int apex = -1;
+  for (int k = 0; k < int(at.size()); ++k)
+    if (valid[std::size_t(k)] && (apex < 0 || at[std::size_t(k)] < at[std::size_t(apex)]))
+      apex = k;
+  if (apex < 0)
+    return in;
+  in[std::size_t(apex)] = 1;
+  for (int dir : {-1, 1}) {
+    int farthest = at[std::size_t(apex)];
+    for (int k = apex + dir; k >= 0 && k < int(at.size()); k += dir) {
+      const std::size_t q = std::size_t(k);
+      if (!valid[q] || at[q] < farthest - tol)
+        break;
+      farthest = std::max(farthest, at[q]);
+      in[q] = 1;
+    }
+  }
+  return in;
+}
+
+// `rows`: row_extents() of `mask`; the columns come from the transposed bounding box alone.
+EdgeOutline edge_outline(const std::vector<CanopyPoint> &pts, const cv::Mat &mask,
+                         const RowExtents &rows)
+{
+  const cv::Rect &b = rows.bbox;
+  const cv::Mat mt = mask(b).t();
+  const RowExtents cols = row_extents(mt); // in bbox coordinates: column c - b.x, row - b.y
+  const auto col_ok = [&](int c) {
+    return c >= cols.bbox.y && c < cols.bbox.br().y && cols.xl(c) >= 0;
+  };
+  // Each edge's boundary as a profile, smaller towards the edge.
+  std::array<std::vector<int>, 4> at;
+  std::vector<char> row_valid(std::size_t(b.height)), col_valid(std::size_t(b.width));
+  for (auto &v : at)
+    v.assign(std::size_t(std::max(b.width, b.height)), 0);
+  for (int r = 0; r < b.height; ++r) {
+    row_valid[std::size_t(r)] = rows.xl(b.y + r) >= 0;
+    at[0][std::size_t(r)] = rows.xl(b.y + r);
+    at[1][std::size_t(r)] = -rows.xr(b.y + r);
+  }
+  for (int c = 0; c < b.width; ++c) {
+    col_valid[std::size_t(c)] = col_ok(c);
+    at[2][std::size_t(c)] = col_ok(c) ? cols.xl(c) : 0;
+    at[3][std::size_t(c)] = col_ok(c) ? -cols.xr(c) : 0;
+  }
+  for (int side = 0; side < 4; ++side)
+    at[std::size_t(side)].resize(std::size_t(side < 2 ? b.height : b.width));
+  const double tol_x = std::max(2.0, kCapTolerance * b.width);
+  const double tol_y = std::max(2.0, kCapTolerance * b.height);
+  std::array<std::vector<char>, 4> run;
+  for (int side = 0; side < 4; ++side)
+    run[std::size_t(side)] = cap_run(at[std::size_t(side)], side < 2 ? row_valid : col_valid,
+                                     side < 2 ? tol_x : tol_y);
+
+  EdgeOutline out;
+  for (auto &v : out.inset)
+    v.assign(pts.size(), -1.0);
+  for (auto &v : out.cap)
+    v.assign(pts.size(), 0);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const int r = int(std::lround(pts[i].v)), c = int(std::lround(pts[i].u)) - b.x;
+    if (r >= b.y && r < b.br().y && rows.xl(r) >= 0) {
+      out.inset[0][i] = pts[i].u - (rows.xl(r) - 0.5);
+      out.inset[1][i] = rows.xr(r) + 0.5 - pts[i].u;
+      out.cap[0][i] = run[0][std::size_t(r - b.y)];
+      out.cap[1][i] = run[1][std::size_t(r - b.y)];
+    }
+    if (c >= 0 && c < b.width && col_ok(c)) {
+      out.inset[2][i] = pts[i].v - (b.y + cols.xl(c) - 0.5);
+      out.inset[3][i] = b.y + cols.xr(c) + 0.5 - pts[i].v;
+      out.cap[2][i] = run[2][std::size_t(c)];
+      out.cap[3][i] = run[3][std::size_t(c)];
+    }
+  }
+  return out;
+}
+
 // kTangentPoints: the depth where one bounding ray (the silhouette's extreme slope t_edge along
-// x or y) touches the canopy. The points nearest that edge are taken: those within `fraction`
-// of the extent from it (the fraction grows by 1.5x until at least `min_points` are in). Near
-// a limb a convex surface recedes as the square root of the distance from it (a circle of
-// radius r seen at distance d inside its limb is sqrt(2 r d) in front of it), so the depth is
-// fitted as z = a0 + a1 * sqrt(distance) and the limb's depth is a0. A fit that does not recede
-// (a1 > 0) or fails falls back to the median of those points; no points at all to `fallback`.
+// x or y) touches the canopy, from the points nearest that edge: those within `fraction` of the
+// extent from it (the fraction grows by 1.5x until at least `min_points` are in). Near a limb a
+// convex surface recedes as the square root of the distance from it (a circle of radius r seen
+// at distance d inside its limb is sqrt(2 r d) in front of it), so the depth is fitted as
+// z = b0 + b1 sqrt(d) and the limb's depth is b0.
+// A crown's outline is made of leaf clusters, each the limb of its own rows or columns, at its
+// own depth. The edge's ray touches the cluster that forms the edge, so the fit takes the
+// points on that cluster's cap (`outline.cap`, see EdgeOutline), when there are at least
+// `min_points` of them, and d is each point's distance inside the silhouette's own boundary
+// (`outline.inset`, px, as mm: inset * z / f). Before, all the points near the edge were fitted
+// against their distance from the edge's line: a cluster beside the one that forms the edge,
+// whose top is a little lower and which stands in front, makes the depth fall steeply away from
+// the line, and the extrapolation put the limb 50-150 mm behind the edge's cluster (heights 2-4 %
+// high in the orchard, docs/results.md "The limb's depth from the edge's own cluster").
+// When the fit fails or does not recede, the distance from the line stands in,
+// z = a0 + a1 sqrt(distance / extent), limb at a0; when that fails or does not recede either,
+// the points' median.
 // `clipped`: the edge is the image border, not a limb (the canopy goes on beyond it), so there is
 // nothing to extrapolate to: the median of those points converts the border's ray, a depth at
 // which that ray is inside the canopy, so the extent stays a lower bound.
-// `rho` (mm): the surface's radius of curvature at the limb (MetricsParams::round_limbs), from the
-// same points: z = b0 + b1 sqrt(d) with d = inset * z / f mm inside the silhouette's boundary
-// (`inset`: px along this edge's axis, see insets(); null: not wanted), rho = b1^2 / 2; 0 when
-// there was no fit.
+// `rho` (mm): the surface's radius of curvature at the limb (MetricsParams::round_limbs),
+// rho = b1^2 / 2; 0 when there was no fit.
 double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, bool vertical,
                   double t_edge, double t_other, double fraction, std::size_t min_points,
-                  double fallback, bool clipped, const std::vector<double> *inset, double &rho)
+                  double fallback, bool clipped, const std::vector<double> &inset,
+                  const std::vector<char> &cap, double &rho)
 {
   rho = 0;
   const double fy = g.fy > 0 ? g.fy : g.fx;
+  const double fpx = vertical ? fy : g.fx;
   std::vector<double> dist(pts.size()); // from the edge, in units of the extent
   for (std::size_t i = 0; i < pts.size(); ++i) {
     const double t = vertical ? (pts[i].v - g.cy) / fy : (pts[i].u - g.cx[LEFT]) / g.fx;
     dist[i] = std::abs(t - t_edge) / std::abs(t_other - t_edge);
   }
+  std::size_t on_cap = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    on_cap += cap[i] && dist[i] <= fraction;
+  const bool cap_only = on_cap >= min_points;
   for (double f = fraction; f <= 0.5; f *= 1.5) {
     std::vector<double> z, r;
     for (std::size_t i = 0; i < pts.size(); ++i)
-      if (dist[i] <= f) {
+      if (dist[i] <= f && (cap[i] || !cap_only)) {
         z.push_back(pts[i].z_mm);
         r.push_back(std::sqrt(dist[i]));
       }
     if (z.size() < min_points)
       continue;
-    double a0 = 0, a1 = 0;
-    if (clipped || !robust_line_fit(r, z, a0, a1) || !(a1 <= 0))
+    if (clipped)
       return median(z);
-    if (inset) {
-      std::vector<double> sq, zz;
-      const double fpx = vertical ? fy : g.fx;
-      for (std::size_t i = 0; i < pts.size(); ++i)
-        if (dist[i] <= f && (*inset)[i] >= 0) {
-          sq.push_back(std::sqrt((*inset)[i] * pts[i].z_mm / fpx));
-          zz.push_back(pts[i].z_mm);
-        }
-      double b0 = 0, b1 = 0;
-      if (robust_line_fit(sq, zz, b0, b1) && b1 < 0)
-        rho = 0.5 * b1 * b1;
+    std::vector<double> sq, zz;
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      if (dist[i] <= f && (cap[i] || !cap_only) && inset[i] >= 0) {
+        sq.push_back(std::sqrt(inset[i] * pts[i].z_mm / fpx));
+        zz.push_back(pts[i].z_mm);
+      }
+    double b0 = 0, b1 = 0;
+    if (zz.size() >= min_points && robust_line_fit(sq, zz, b0, b1) && b1 < 0) {
+      rho = 0.5 * b1 * b1;
+      return b0;
     }
+    double a0 = 0, a1 = 0;
+    if (!robust_line_fit(r, z, a0, a1) || !(a1 <= 0))
+      return median(z);
     return a0;
   }
   return fallback;
-}
-
-// Each point's distance (px) inside the silhouette's boundary along an axis: from its row's left
-// and right ends, its column's top and bottom ends (-1 when off the silhouette's rows/columns).
-// `rows`: row_extents() of `mask`; the columns come from the transposed bounding box alone.
-std::array<std::vector<double>, 4> insets(const std::vector<CanopyPoint> &pts, const cv::Mat &mask,
-                                          const RowExtents &rows)
-{
-  const cv::Rect &b = rows.bbox;
-  const cv::Mat mt = mask(b).t();
-  const RowExtents cols = row_extents(mt); // in bbox coordinates: column c - b.x, row - b.y
-  std::array<std::vector<double>, 4> in;
-  for (auto &v : in)
-    v.assign(pts.size(), -1.0);
-  for (std::size_t i = 0; i < pts.size(); ++i) {
-    const int r = int(std::lround(pts[i].v)), c = int(std::lround(pts[i].u)) - b.x;
-    if (r >= b.y && r < b.br().y && rows.xl(r) >= 0) {
-      in[0][i] = pts[i].u - (rows.xl(r) - 0.5);
-      in[1][i] = rows.xr(r) + 0.5 - pts[i].u;
-    }
-    if (c >= cols.bbox.y && c < cols.bbox.br().y && cols.xl(c) >= 0) {
-      in[2][i] = pts[i].v - (b.y + cols.xl(c) - 0.5);
-      in[3][i] = b.y + cols.xr(c) + 0.5 - pts[i].v;
-    }
-  }
-  return in;
 }
 
 Converter tangent_points(const std::vector<CanopyPoint> &pts, const Slopes &s,
@@ -316,10 +403,7 @@ Converter tangent_points(const std::vector<CanopyPoint> &pts, const Slopes &s,
                          double fallback, const Clipped &clip, bool round_limbs,
                          const cv::Mat &mask, const RowExtents &rows)
 {
-  std::array<std::vector<double>, 4> in;
-  if (round_limbs)
-    in = insets(pts, mask, rows);
-  const auto inset = [&](int side) { return round_limbs ? &in[std::size_t(side)] : nullptr; };
+  const EdgeOutline o = edge_outline(pts, mask, rows);
   Converter c;
   c.sided = true;
   c.t0x = s.left;
@@ -328,13 +412,13 @@ Converter tangent_points(const std::vector<CanopyPoint> &pts, const Slopes &s,
   c.t1y = s.bottom;
   double rho[4];
   c.z0x = side_depth(pts, g, false, s.left, s.right, fraction, min_points, fallback, clip.left,
-                     inset(0), rho[0]);
+                     o.inset[0], o.cap[0], rho[0]);
   c.z1x = side_depth(pts, g, false, s.right, s.left, fraction, min_points, fallback, clip.right,
-                     inset(1), rho[1]);
+                     o.inset[1], o.cap[1], rho[1]);
   c.z0y = side_depth(pts, g, true, s.top, s.bottom, fraction, min_points, fallback, clip.top,
-                     inset(2), rho[2]);
+                     o.inset[2], o.cap[2], rho[2]);
   c.z1y = side_depth(pts, g, true, s.bottom, s.top, fraction, min_points, fallback,
-                     clip.bottom, inset(3), rho[3]);
+                     clip.bottom, o.inset[3], o.cap[3], rho[3]);
   const double dt = s.right - s.left;
   c.z_ext = dt > 0 ? (c.x(s.right) - c.x(s.left)) / dt : fallback;
   c.zc = c.z_ext;

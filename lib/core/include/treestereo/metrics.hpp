@@ -13,7 +13,9 @@
 //    X_left = t_left * Z_left, X_right = t_right * Z_right (Y likewise), so the extent needs
 //    no shape model. Z of an edge comes from the points within tangent_fraction of the extent
 //    from it: the surface recedes as sqrt(distance from the limb) there, so the depth is fitted
-//    as a0 + a1 * sqrt(distance) and a0 (the limb's depth) taken. Between the edges the
+//    as b0 + b1 * sqrt(d) and b0 (the limb's depth) taken, over the points of the leaf cluster
+//    that forms the edge (the outline's cap up to its first valley), d being each point's
+//    distance inside the silhouette's own boundary on its row or column. Between the edges the
 //    conversion depth is interpolated linearly in slope (bands, area, perimeter). An edge on the
 //    image border (see `clipped`) is no limb: it takes the median depth of those points instead,
 //    a depth where its ray is inside the canopy, so that the extent stays a lower bound. On the
@@ -67,8 +69,8 @@ struct MetricsParams {
   // canopy at its limb, which is not the canopy's extreme point unless the ray is parallel to
   // the optical axis: where the surface is rounded with radius rho, the extreme lies
   // rho * (1 - cos(angle of the ray)) beyond the limb (18 mm for a 0.3 m sphere whose top ray
-  // climbs 20 degrees). rho comes from the same edge points: a surface rounded with radius rho
-  // is sqrt(2 rho d) in front of the silhouette's boundary at d mm inside it (d along the row
+  // climbs 20 degrees). rho comes from the edge's own depth fit: a surface rounded with radius
+  // rho is sqrt(2 rho d) in front of the silhouette's boundary at d mm inside it (d along the row
   // for the left/right edges, along the column for top/bottom), fitted as
   // z = b0 + b1 sqrt(d), rho = b1^2 / 2, capped at half the extent. It reads rho about 20-40 %
   // short on a sphere (rows away from the extreme cut smaller circles), so the correction is
