@@ -281,23 +281,25 @@ EdgeOutline edge_outline(const std::vector<CanopyPoint> &pts, const cv::Mat &mas
   const auto col_ok = [&](int c) {
     return c >= cols.bbox.y && c < cols.bbox.br().y && cols.xl(c) >= 0;
   };
-  // Each edge's boundary as a profile, smaller towards the edge.
-  std::array<std::vector<int>, 4> at;
-  std::vector<char> row_valid(std::size_t(b.height)), col_valid(std::size_t(b.width));
-  for (auto &v : at)
-    v.assign(std::size_t(std::max(b.width, b.height)), 0);
-  for (int r = 0; r < b.height; ++r) {
-    row_valid[std::size_t(r)] = rows.xl(b.y + r) >= 0;
-    at[0][std::size_t(r)] = rows.xl(b.y + r);
-    at[1][std::size_t(r)] = -rows.xr(b.y + r);
+  // Each edge's boundary as a profile, smaller towards the edge: left and right per row, top
+  // and bottom per column.
+  const std::size_t nr = std::size_t(b.height), nc = std::size_t(b.width);
+  std::array<std::vector<int>, 4> at = {std::vector<int>(nr), std::vector<int>(nr),
+                                        std::vector<int>(nc), std::vector<int>(nc)};
+  std::vector<char> row_valid(nr), col_valid(nc);
+  for (std::size_t r = 0; r < nr; ++r) {
+    const int row = b.y + int(r);
+    row_valid[r] = rows.xl(row) >= 0;
+    at[0][r] = rows.xl(row);
+    at[1][r] = -rows.xr(row);
   }
-  for (int c = 0; c < b.width; ++c) {
-    col_valid[std::size_t(c)] = col_ok(c);
-    at[2][std::size_t(c)] = col_ok(c) ? cols.xl(c) : 0;
-    at[3][std::size_t(c)] = col_ok(c) ? -cols.xr(c) : 0;
+  for (std::size_t c = 0; c < nc; ++c) {
+    col_valid[c] = col_ok(int(c));
+    if (col_valid[c]) {
+      at[2][c] = cols.xl(int(c));
+      at[3][c] = -cols.xr(int(c));
+    }
   }
-  for (int side = 0; side < 4; ++side)
-    at[std::size_t(side)].resize(std::size_t(side < 2 ? b.height : b.width));
   const double tol_x = std::max(2.0, kCapTolerance * b.width);
   const double tol_y = std::max(2.0, kCapTolerance * b.height);
   std::array<std::vector<char>, 4> run;
@@ -338,11 +340,11 @@ EdgeOutline edge_outline(const std::vector<CanopyPoint> &pts, const cv::Mat &mas
 // own depth. The edge's ray touches the cluster that forms the edge, so the fit takes the
 // points on that cluster's cap (`outline.cap`, see EdgeOutline), when there are at least
 // `min_points` of them, and d is each point's distance inside the silhouette's own boundary
-// (`outline.inset`, px, as mm: inset * z / f). Before, all the points near the edge were fitted
-// against their distance from the edge's line: a cluster beside the one that forms the edge,
-// whose top is a little lower and which stands in front, makes the depth fall steeply away from
-// the line, and the extrapolation put the limb 50-150 mm behind the edge's cluster (heights 2-4 %
-// high in the orchard, docs/results.md "The limb's depth from the edge's own cluster").
+// (`outline.inset`, px, as mm: inset * z / f). Not every point near the edge against its
+// distance from the edge's line: a cluster beside the one that forms the edge, whose top is a
+// little lower and which stands in front, makes the depth fall steeply away from the line, and
+// the extrapolation puts the limb 50-150 mm behind the edge's cluster (heights 2-4 % high in
+// the orchard, docs/results.md "The limb's depth from the edge's own cluster").
 // When the fit fails or does not recede, the distance from the line stands in,
 // z = a0 + a1 sqrt(distance / extent), limb at a0; when that fails or does not recede either,
 // the points' median.
