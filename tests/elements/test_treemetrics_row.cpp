@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <algorithm>
 #include <vector>
 
 #include <gst/check/gstcheck.h>
@@ -410,10 +411,13 @@ SceneParams orchard_params(int w, int h)
   return p;
 }
 
-/* Each frame's stereo travel within `per_frame` of the renderer's, the position at the end
- * within 3 %. */
+/* Each frame's stereo travel within `per_frame` of the renderer's and their median error within
+ * `typical`, the position at the end within 3 %. The bound on every frame is a safety net: a
+ * frame measured from its key frame carries the tracks' error over the key's longer span, a few
+ * per cent in a bad case (docs/results.md, "The straight drive"); the median is what the
+ * estimate gives a frame. */
 void check_travel(const OrchardRun &r, int w, int h, int frames, double per_frame,
-                  const char *what)
+                  double typical, const char *what)
 {
   const SceneRenderer renderer(orchard_params(w, h));
   auto travel_m = [&](guint64 k) { return renderer.travel_mm(k) / 1000.0; };
@@ -422,6 +426,7 @@ void check_travel(const OrchardRun &r, int w, int h, int frames, double per_fram
   fail_unless_equals_int(r.frames[0].source, GST_TREE_STEREO_TRAVEL_NONE);
   fail_unless_equals_float(r.frames[0].position_m, 0.0);
   double worst = 0;
+  std::vector<double> errs;
   for (std::size_t k = 1; k < r.frames.size(); k++) {
     const FrameOut &f = r.frames[k];
     const double truth = travel_m(f.frame) - travel_m(r.frames[k - 1].frame);
@@ -431,9 +436,15 @@ void check_travel(const OrchardRun &r, int w, int h, int frames, double per_fram
     std::printf("%s frame %zu: travel %.4f m, truth %.4f m (%+.2f %%)\n", what, k, f.travel_m,
                 truth, 100 * err);
     worst = std::max(worst, std::fabs(err));
+    errs.push_back(std::fabs(err));
     fail_unless(std::fabs(err) < per_frame, "%s frame %zu: travel %.4f m, truth %.4f m", what, k,
                 f.travel_m, truth);
   }
+  std::sort(errs.begin(), errs.end());
+  const double med = errs.size() % 2 ? errs[errs.size() / 2]
+                                     : 0.5 * (errs[errs.size() / 2 - 1] + errs[errs.size() / 2]);
+  std::printf("%s: median frame error %.2f %%\n", what, 100 * med);
+  fail_unless(med < typical, "%s: the frames' median travel error %.2f %%", what, 100 * med);
   const double truth_pos = travel_m(r.frames.back().frame) - travel_m(r.frames.front().frame);
   const double pos = r.frames.back().position_m;
   std::printf("%s: position %.4f m, truth %.4f m (%+.2f %%), worst frame %.2f %%\n", what, pos,
@@ -444,12 +455,13 @@ void check_travel(const OrchardRun &r, int w, int h, int frames, double per_fram
 
 } // namespace
 
-/* 1296x972, the cameras' size: every frame's travel within 3 % of the renderer's. */
+/* 1296x972, the cameras' size: every frame's travel within 4 % of the renderer's, their median
+ * within 0.5 %. */
 GST_START_TEST(test_travel_from_stereo_full_size)
 {
   const int n = 5;
   OrchardRun r = run_orchard(1296, 972, n, "trees=false");
-  check_travel(r, 1296, 972, n, 0.03, "1296x972");
+  check_travel(r, 1296, 972, n, 0.04, 0.005, "1296x972");
   fail_unless(r.records.empty(), "trees=false posted records");
   free_run(r);
 }
@@ -457,13 +469,13 @@ GST_END_TEST;
 
 /* The travel rests on the keypoints: with every densification grid point placed 10 % deeper
  * than stereodepth measured it (and the keypoints left as they are), every frame's travel is
- * still within 3 % of the renderer's. Measured on the grid points too, it would read up to
- * 10 % long. */
+ * still within 4 % of the renderer's, their median within 0.5 %. Measured on the grid points
+ * too, it would read up to 10 % long. */
 GST_START_TEST(test_travel_rests_on_the_keypoints)
 {
   const int n = 4;
   OrchardRun r = run_orchard(1296, 972, n, "trees=false", "orchard", "", -1, 1.10);
-  check_travel(r, 1296, 972, n, 0.03, "1296x972, grid points 10 % deeper");
+  check_travel(r, 1296, 972, n, 0.04, 0.005, "1296x972, grid points 10 % deeper");
   free_run(r);
 }
 GST_END_TEST;
@@ -511,7 +523,7 @@ GST_START_TEST(test_trees_and_row_map_on_the_orchard)
   const int n = 14, w = 640, h = 480;
   const std::string csv = tmp_dir() + "/row.csv", png = tmp_dir() + "/row.png";
   OrchardRun r = run_orchard(w, h, n, "row-map-location=" + csv + " row-map-bin=0.1");
-  check_travel(r, w, h, n, 0.07, "640x480");
+  check_travel(r, w, h, n, 0.07, 0.005, "640x480");
   fail_unless_equals_int(int(r.metrics_messages), n);
 
   // The records: ids counting from 1, the last ones (still in view) posted at EOS, before EOS
