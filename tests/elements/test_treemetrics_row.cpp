@@ -5,13 +5,13 @@
  * stereo travel, the records and the map on treetestsrc's orchard through the whole chain,
  * compared with the renderer's truth (its travel, SceneRenderer::row_trees()). */
 #include "treestereo/scene.hpp"
+#include "treestereo/stats.hpp"
 
 #include <cmath>
 #include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <string>
-#include <algorithm>
 #include <vector>
 
 #include <gst/check/gstcheck.h>
@@ -440,9 +440,7 @@ void check_travel(const OrchardRun &r, int w, int h, int frames, double per_fram
     fail_unless(std::fabs(err) < per_frame, "%s frame %zu: travel %.4f m, truth %.4f m", what, k,
                 f.travel_m, truth);
   }
-  std::sort(errs.begin(), errs.end());
-  const double med = errs.size() % 2 ? errs[errs.size() / 2]
-                                     : 0.5 * (errs[errs.size() / 2 - 1] + errs[errs.size() / 2]);
+  const double med = median(errs);
   std::printf("%s: median frame error %.2f %%\n", what, 100 * med);
   fail_unless(med < typical, "%s: the frames' median travel error %.2f %%", what, 100 * med);
   const double truth_pos = travel_m(r.frames.back().frame) - travel_m(r.frames.front().frame);

@@ -634,7 +634,8 @@ Refined refine_trimmed(const std::vector<Tracked> &in, const StereoGeometry &g, 
   return out;
 }
 
-// The Huber cost (kHuberPx) of the points' reprojection residuals under a pose.
+// The Huber cost (kHuberPx) of the points' reprojection residuals under a pose; a point behind
+// the rig counts as three residuals of 1.5 kHuberPx.
 double huber_cost(const std::vector<Tracked> &pts, const StereoGeometry &g, const cv::Matx33d &Rc,
                   const cv::Vec3d &tc)
 {
@@ -831,14 +832,9 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
     if (b.ok && (!best || b.consensus > best->consensus ||
                  (b.consensus == best->consensus && b.rms_px < best->rms_px)))
       best = &b;
-    // The straight drive against a turn: the rotation is kept only when its three parameters
-    // lower the robust cost of all the inliers' residuals (huber_cost) by more than the Bayesian
-    // information criterion asks of three parameters, n ln(c3 / c6) > 3 ln n for n residuals;
-    // otherwise the translation alone stands. A turn the tracks cannot tell from their noise is
-    // none: over canopy at one depth it would take a share of the travel (0.05 degrees at 2 m is
-    // 1.7 mm), and such spurious turns read the travel short (docs/results.md, "The straight
-    // drive").
-    if (best && best != &b_translation && b_translation.ok) {
+    // A turn only where the data asks for one (step 5 of travel.hpp): the Bayesian information
+    // criterion over all the inliers' residuals, n ln(c3 / c6) > 3 ln n for n residuals.
+    if (best && b_translation.ok) {
       const double c6 = huber_cost(in, g, best->Rc, best->tc);
       const double c3 = huber_cost(in, g, b_translation.Rc, b_translation.tc);
       const double n = 3.0 * double(in.size()); // left x and y, right x per point
