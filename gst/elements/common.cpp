@@ -307,6 +307,8 @@ GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, 
     o.joined_hi = g.joined_hi;
     o.lo_z_m = g.lo_z_mm * kMmToM;
     o.hi_z_m = g.hi_z_mm * kMmToM;
+    o.lo_clear_m = g.lo_clear_mm * kMmToM;
+    o.hi_clear_m = g.hi_clear_mm * kMmToM;
   }
   return meta;
 }
@@ -328,6 +330,8 @@ std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta)
     o.joined_hi = g.joined_hi != FALSE;
     o.lo_z_mm = g.lo_z_m * 1e3;
     o.hi_z_mm = g.hi_z_m * 1e3;
+    o.lo_clear_mm = g.lo_clear_m * 1e3;
+    o.hi_clear_mm = g.hi_clear_m * 1e3;
     out.push_back(o);
   }
   return out;

@@ -530,8 +530,12 @@ gst_buffer_add_tree_stereo_canopy_meta (GstBuffer * buffer, GstTreeStereoCanopyM
   g_return_val_if_fail (GST_IS_BUFFER (buffer), NULL);
   meta = (GstTreeStereoCanopyMeta *) gst_buffer_add_meta (buffer,
       GST_TREE_STEREO_CANOPY_META_INFO, NULL);
-  if (meta)
+  if (meta) {
+    guint i;
     meta->mode = mode;
+    for (i = 0; i < GST_TREE_STEREO_MAX_SEGMENTS; i++)
+      meta->segments[i].lo_clear_m = meta->segments[i].hi_clear_m = NAN;
+  }
   return meta;
 }
 

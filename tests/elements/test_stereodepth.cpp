@@ -702,6 +702,7 @@ struct OrchardRun {
   bool message = false, message_canopy = false;
   GstTreeStereoDepthStats message_stats{};
   GstTreeStereoCanopyMeta message_fields{};
+  std::vector<GstTreeStereoRowSegment> segments; // the canopy meta's
   GstMessage *error = nullptr;     // owned
   guint warnings = 0;
 };
@@ -747,6 +748,7 @@ void orchard_handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
     return;
   r.canopy_meta = true;
   r.mode = cm->mode;
+  r.segments.assign(cm->segments, cm->segments + cm->n_stored_segments);
   r.canopy_present = cm->view.present;
   r.canopy_x = cm->view.bbox_x;
   r.canopy_w = cm->view.bbox_width;
@@ -953,6 +955,21 @@ GST_START_TEST(test_orchard_canopy_is_the_tree_in_front)
   fail_unless(r.message_fields.n_segments >= 1);
   fail_unless(r.message_fields.n_canopy_points > 0);
   fail_unless(r.tree_present);
+  /* each segment says how far inside the view's edges its points keep; the tree in front is
+   * whole in view (its box is the projected tree's, above), the outermost reach the edges */
+  fail_unless(!r.segments.empty());
+  for (const GstTreeStereoRowSegment &s : r.segments) {
+    g_print("[ orchard ] segment %.3f..%.3f m: %.3f m inside the left edge, %.3f m inside the "
+            "right one%s\n", s.lo_m, s.hi_m, s.lo_clear_m, s.hi_clear_m,
+            s.selected ? " (the tree in front)" : "");
+    fail_unless(std::isfinite(s.lo_clear_m) && std::isfinite(s.hi_clear_m));
+    if (s.selected)
+      fail_unless(s.lo_clear_m > 0.05 && s.hi_clear_m > 0.05);
+  }
+  /* the next tree, entering the view on the right: its points reach the edge */
+  fail_unless(!r.segments.back().selected && r.segments.back().hi_clear_m < 0.05,
+              "the rightmost segment keeps %.3f m inside the right edge",
+              r.segments.back().hi_clear_m);
 }
 GST_END_TEST;
 

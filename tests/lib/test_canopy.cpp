@@ -3,6 +3,7 @@
 // "vegetation" to colour; the truth of which pixels are the canopy in front is exact.
 #include "treestereo/errors.hpp"
 #include "treestereo/canopy.hpp"
+#include "treestereo/rowtrack.hpp"
 #include "typed_error.hpp"
 
 #include <gtest/gtest.h>
@@ -347,6 +348,48 @@ TEST(Canopy, TwoCanopiesThirtyCentimetresApart)
   for (const auto &seg : wall.segments) {
     EXPECT_TRUE(seg.selected);
   }
+}
+
+// How far inside the stereo view's edges a segment's points keep. The points are the exact grid
+// of the left view, less those within kReach px of the right view's left border (as stereo
+// points stop there: the right view's black border after rectification, the match's patch).
+//  - A crown wholly in view: its clearance is the sphere's, the least x - (s z + o) over it
+//    (edge ray x = s z + o), cx - s cz - o - r sqrt(1 + s^2), and likewise on the right.
+//  - A crown the left edge cuts: its points stop kReach px inside the right view, whose edge
+//    ray is the view's; the front ones come nearest, and its clearance is (kReach + 0.5) px at
+//    the front's depth. Its extreme point lies deeper, further out on the ray: tested alone, it
+//    would seem clear of the edge by more.
+TEST(Canopy, SegmentsKnowHowFarInsideTheViewTheirPointsKeep)
+{
+  Scene s;
+  s.spheres.push_back({cv::Vec3d(-700, 0, 2200), 330}); // x -1030..-370, the edge at -821
+  s.spheres.push_back({cv::Vec3d(150, 0, 2200), 300});  // x -150..450
+  s.wall_z = 5500;
+  const Rendered r = render(s);
+  constexpr double kReach = 16;
+  std::vector<PixelPoint> pts;
+  for (const PixelPoint &q : grid_points(r.objects, r.points, 4)) {
+    const double xr = q.px.x - s.g.fx * s.g.baseline_mm / q.p.z;
+    if (xr >= kReach)
+      pts.push_back(q);
+  }
+  const CanopyResult res = select_canopy(r.vegetation, pts, s.g, CanopyParams(), r.left, r.right);
+  ASSERT_EQ(res.segments.size(), 2u);
+  double ls = 0, rs = 0, lo_off = 0;
+  view_slopes(s.g, ls, rs, lo_off);
+  const RowSegment &cut = res.segments[0], &whole = res.segments[1];
+
+  const double spacing = 4 * 2200 / s.g.fx; // the grid's, at the crowns' depth (11 mm)
+  const Sphere &b = s.spheres[1];
+  EXPECT_NEAR(whole.lo_clear_mm,
+              b.c[0] - ls * b.c[2] - lo_off - b.r * std::sqrt(1 + ls * ls), spacing);
+  EXPECT_NEAR(whole.hi_clear_mm, rs * b.c[2] - b.c[0] - b.r * std::sqrt(1 + rs * rs), spacing);
+
+  // The cut crown's front (the sphere's front at the edge ray lies near z = 1.95 m).
+  EXPECT_NEAR(cut.lo_clear_mm, (kReach + 0.5) * cut.near_mm / s.g.fx, spacing);
+  EXPECT_LT(cut.lo_clear_mm + 5, cut.lo_mm - (ls * cut.lo_z_mm + lo_off));
+  // Its right end, far inside the view.
+  EXPECT_GT(cut.hi_clear_mm, 500);
 }
 
 // Two round crowns grown 40 mm into each other: no gap along the row, but a notch in their top

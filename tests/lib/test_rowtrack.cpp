@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -601,8 +602,10 @@ TEST(TreeTracker, AStandingRigIsMeasuredByItsLatestFrames)
 }
 
 // The record of one tree the rig stands in front of for 5 frames, its left end `lo_mm` at depth
-// `lo_z_mm` (0: unknown), the stereo view's left edge `left_offset_mm` inside the image's.
-TreeRecord stand_before(double lo_mm, double lo_z_mm, double left_offset_mm)
+// `lo_z_mm` (0: unknown), the stereo view's left edge `left_offset_mm` inside the image's, its
+// points at least `lo_clear_mm` inside that edge (NaN: unknown).
+TreeRecord stand_before(double lo_mm, double lo_z_mm, double left_offset_mm,
+                        double lo_clear_mm = std::numeric_limits<double>::quiet_NaN())
 {
   TreeTracker tracker;
   for (int f = 0; f < 5; ++f) {
@@ -616,6 +619,7 @@ TreeRecord stand_before(double lo_mm, double lo_z_mm, double left_offset_mm)
     seg.near_mm = kNear;
     seg.lo_z_mm = lo_z_mm;
     seg.hi_z_mm = kNear;
+    seg.lo_clear_mm = lo_clear_mm;
     seg.n_points = 500;
     seg.selected = true;
     tf.segments = {seg};
@@ -655,6 +659,26 @@ TEST(TreeTracker, AnEndIsOnTheViewEdgeAtItsOwnDepth)
   const TreeRecord strip = stand_before(in_strip, kNear, 120);
   EXPECT_FALSE(strip.start_seen);
   EXPECT_FALSE(strip.has_width);
+}
+
+TEST(TreeTracker, AnEndIsOnTheViewEdgeWhenAnyOfItsPointsIs)
+{
+  // The deep limb of the test above, its end 256 mm inside the edge at its own depth; but the
+  // points in front of it come within 20 mm of the edge (the crown goes on beyond the view,
+  // and only the limb behind seemed clear of it): a lower bound, no width.
+  const double lo = kLeftSlope * kNear + 20;
+  const TreeRecord touching = stand_before(lo, kNear + 400, 0, 20);
+  EXPECT_FALSE(touching.start_seen);
+  EXPECT_FALSE(touching.has_width);
+  EXPECT_FALSE(touching.complete);
+  // Every point 120 mm or more inside the edge: whole in view.
+  const TreeRecord clear = stand_before(lo, kNear + 400, 0, 120);
+  EXPECT_TRUE(clear.start_seen);
+  ASSERT_TRUE(clear.has_width);
+  EXPECT_NEAR(clear.width_m, 0.7, 1e-9);
+  // The clearance decides, not the end's own point: the end 20 mm inside the edge at the
+  // front's depth, but every point (the end's among them, at its depth) 120 mm inside it.
+  EXPECT_TRUE(stand_before(lo, 0, 0, 120).start_seen);
 }
 
 TEST(TreeTracker, ViewEdgesOfTheStereoPair)
@@ -736,6 +760,16 @@ TEST(TreeTracker, ErrorsAreTypedAndNameTheProblem)
   TrackFrame f;
   f.position_mm = std::nan("");
   expect_typed_error<BadInput>([&] { t.update(f); }, "rig's position");
+  f.position_mm = 0;
+  f.left_slope = kLeftSlope;
+  f.right_slope = kRightSlope;
+  RowSegment seg;
+  seg.lo_mm = -300;
+  seg.hi_mm = 300;
+  seg.near_mm = kNear;
+  seg.hi_clear_mm = std::numeric_limits<double>::infinity();
+  f.segments = {seg};
+  expect_typed_error<BadInput>([&] { t.update(f); }, "hi_clear_mm");
   double l = 0, r = 0, off = 0;
   expect_typed_error<BadInput>([&] { view_slopes(StereoGeometry(), l, r, off); },
                                "stereo geometry");

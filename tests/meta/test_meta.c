@@ -1,5 +1,6 @@
 /* Unit tests of the meta library: add, get, copy with gst_buffer_copy (every field), scale
  * transform, free, and the element messages' round trip. */
+#include <math.h>
 #include <gst/check/gstcheck.h>
 #include <gst/treestereo/treestereo-meta.h>
 
@@ -492,6 +493,8 @@ fill_canopy (GstTreeStereoCanopyMeta * c, GstBuffer * mask)
     c->segments[i].selected = i == 1;
     c->segments[i].lo_z_m = 2.1 + 0.05 * i;
     c->segments[i].hi_z_m = 2.2 + 0.05 * i;
+    c->segments[i].lo_clear_m = 0.03 + 0.1 * i;
+    c->segments[i].hi_clear_m = -0.004 + 0.2 * i;
   }
 }
 
@@ -521,6 +524,8 @@ assert_canopy_figures_equal (const GstTreeStereoCanopyMeta * a, const GstTreeSte
     fail_unless_equals_int (a->segments[i].selected, b->segments[i].selected);
     fail_unless_equals_float (a->segments[i].lo_z_m, b->segments[i].lo_z_m);
     fail_unless_equals_float (a->segments[i].hi_z_m, b->segments[i].hi_z_m);
+    fail_unless_equals_float (a->segments[i].lo_clear_m, b->segments[i].lo_clear_m);
+    fail_unless_equals_float (a->segments[i].hi_clear_m, b->segments[i].hi_clear_m);
   }
 }
 
@@ -536,6 +541,9 @@ GST_START_TEST (test_canopy_meta)
   fail_if (c->view.present);
   fail_unless (c->view.mask == NULL && c->view.contour == NULL);
   fail_unless_equals_float (c->near_m, 0.0);
+  /* a segment's clearance from the view's edges: unknown until given (0 would be on the edge) */
+  fail_unless (isnan (c->segments[0].lo_clear_m) && isnan (c->segments[0].hi_clear_m));
+  fail_unless (isnan (c->segments[GST_TREE_STEREO_MAX_SEGMENTS - 1].hi_clear_m));
   fail_unless (gst_buffer_get_tree_stereo_canopy_meta (buf) == c);
   fail_unless (gst_meta_api_type_has_tag (GST_TREE_STEREO_CANOPY_META_API_TYPE,
           g_quark_from_static_string (GST_META_TAG_VIDEO_STR)));

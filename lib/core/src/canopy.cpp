@@ -639,6 +639,8 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     for (std::size_t k = 0; k + 1 < runs.size(); ++k)
       if (runs[k + 1][0] - runs[k][1] <= 2)
         r.segments[k].joined_hi = r.segments[k + 1].joined_lo = true;
+    for (auto &s : r.segments)
+      s.lo_clear_mm = s.hi_clear_mm = std::numeric_limits<double>::infinity();
     for (int i : zone) {
       const int k = runs.empty() ? 0 : run_of(P(i).x);
       const bool in = runs.empty() || p.mode == CanopyMode::Row || k == front;
@@ -652,6 +654,14 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
         s.hi_mm = P(i).x;
         s.hi_z_mm = P(i).z;
       }
+      // Its distance from the view's edges, in px of both views (the point needs both), then
+      // mm at its depth: (column + 0.5) * z / fx is its distance from the ray of view_slopes().
+      const double xl = points[std::size_t(i)].px.x;
+      const double xr = xl - (g.fx * g.baseline_mm / P(i).z + g.doffs());
+      const double mm_per_px = P(i).z / g.fx;
+      s.lo_clear_mm = std::min(s.lo_clear_mm, (std::min(xl, xr) + 0.5) * mm_per_px);
+      s.hi_clear_mm =
+          std::min(s.hi_clear_mm, (size.width - 0.5 - std::max(xl, xr)) * mm_per_px);
       ++s.n_points;
       s.selected = in;
       seg_z[std::size_t(k)].push_back(P(i).z);

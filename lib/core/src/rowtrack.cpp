@@ -45,13 +45,17 @@ void check_frame(const TrackFrame &f)
   for (const RowSegment &s : f.segments)
     if (!std::isfinite(s.lo_mm) || !std::isfinite(s.hi_mm) || s.hi_mm < s.lo_mm ||
         !std::isfinite(s.near_mm) || !(s.near_mm > 0) || !(s.lo_z_mm >= 0) ||
-        !(s.hi_z_mm >= 0) || !std::isfinite(s.lo_z_mm) || !std::isfinite(s.hi_z_mm))
+        !(s.hi_z_mm >= 0) || !std::isfinite(s.lo_z_mm) || !std::isfinite(s.hi_z_mm) ||
+        std::isinf(s.lo_clear_mm) || std::isinf(s.hi_clear_mm))
       throw BadInput("A row segment in the frame cannot be used: each needs finite lo_mm <= "
-                     "hi_mm, a near_mm above 0 and lo_z_mm, hi_z_mm finite and 0 or above.",
+                     "hi_mm, a near_mm above 0, lo_z_mm, hi_z_mm finite and 0 or above, and "
+                     "lo_clear_mm, hi_clear_mm finite or NaN (unknown).",
                      "RowSegment: lo_mm=" + std::to_string(s.lo_mm) + " hi_mm=" +
                          std::to_string(s.hi_mm) + " near_mm=" + std::to_string(s.near_mm) +
                          " lo_z_mm=" + std::to_string(s.lo_z_mm) +
-                         " hi_z_mm=" + std::to_string(s.hi_z_mm));
+                         " hi_z_mm=" + std::to_string(s.hi_z_mm) +
+                         " lo_clear_mm=" + std::to_string(s.lo_clear_mm) +
+                         " hi_clear_mm=" + std::to_string(s.hi_clear_mm));
 }
 
 // A track keeps at most this many samples of each figure (the latest): a tree in view for longer
@@ -192,9 +196,13 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
     const RowSegment &s = f.segments[i];
     const double z_lo = s.lo_z_mm > 0 ? s.lo_z_mm : s.near_mm;
     const double z_hi = s.hi_z_mm > 0 ? s.hi_z_mm : s.near_mm;
-    segs[i] = {s.lo_mm + pos, s.hi_mm + pos,
-               s.lo_mm <= f.left_slope * z_lo + f.left_offset_mm + params_.edge_margin_mm,
-               s.hi_mm >= f.right_slope * z_hi - params_.edge_margin_mm};
+    const double clear_lo = std::isnan(s.lo_clear_mm)
+                                ? s.lo_mm - (f.left_slope * z_lo + f.left_offset_mm)
+                                : s.lo_clear_mm;
+    const double clear_hi =
+        std::isnan(s.hi_clear_mm) ? f.right_slope * z_hi - s.hi_mm : s.hi_clear_mm;
+    segs[i] = {s.lo_mm + pos, s.hi_mm + pos, clear_lo <= params_.edge_margin_mm,
+               clear_hi <= params_.edge_margin_mm};
   }
   // Each track's extent to match against. Mode Tree: an end seen off the image edge in two
   // frames or more is its median, not the last frame's: a frame whose segment reached across a

@@ -330,6 +330,9 @@ GType gst_tree_stereo_canopy_mode_get_type (void);
  * @joined_hi: likewise with the segment after it
  * @lo_z_m: Z of its leftmost point (m; 0: unknown)
  * @hi_z_m: Z of its rightmost point (m; 0: unknown)
+ * @lo_clear_m: how far inside the stereo view's left edge its points keep: the least distance
+ *   along x of any of its points from that edge's ray at the point's own depth (m; NaN: unknown)
+ * @hi_clear_m: likewise from the view's right edge
  *
  * One stretch of the near row along x, separated from the next by an empty stretch (mode tree),
  * or one continuous canopy (mode row).
@@ -344,6 +347,8 @@ typedef struct {
   gboolean joined_hi;
   gdouble lo_z_m;
   gdouble hi_z_m;
+  gdouble lo_clear_m;
+  gdouble hi_clear_m;
 } GstTreeStereoRowSegment;
 
 /* Segments a canopy meta holds at most (the view of a rig between two rows holds a few). */
@@ -402,7 +407,8 @@ const GstMetaInfo *gst_tree_stereo_canopy_meta_get_info (void);
 #define GST_TREE_STEREO_CANOPY_META_API_TYPE (gst_tree_stereo_canopy_meta_api_get_type ())
 #define GST_TREE_STEREO_CANOPY_META_INFO (gst_tree_stereo_canopy_meta_get_info ())
 
-/* Adds a canopy meta with all figures zero (an empty view) in @mode; the caller fills it in. */
+/* Adds a canopy meta with all figures zero (an empty view; the segments' clearances NaN,
+ * unknown) in @mode; the caller fills it in. */
 GstTreeStereoCanopyMeta *gst_buffer_add_tree_stereo_canopy_meta (GstBuffer *buffer,
     GstTreeStereoCanopyMode mode);
 #define gst_buffer_get_tree_stereo_canopy_meta(b) \

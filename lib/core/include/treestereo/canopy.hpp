@@ -139,6 +139,15 @@ struct RowSegment {
   // Z of the points at lo_mm and hi_mm: whether an end lies on the view's edge is a question of
   // its own depth (a limb behind the front reaches further out on an edge ray). 0: unknown.
   double lo_z_mm = 0, hi_z_mm = 0;
+  // How far inside the stereo view's left (lo) and right (hi) edge its points keep: the least
+  // distance along x of any of its points from that edge's ray at the point's own depth (mm;
+  // the rays of view_slopes(); below 0 for a point a little beyond). Whether the canopy goes on
+  // beyond the edge is a question of every point that comes near it, not of the extreme point
+  // alone: at 2 m the points stop a few cm inside the edge (the right view's black border,
+  // the match's patch), and a deeper extreme point then seems clear of it. NaN: unknown (the
+  // extreme point at lo_z_mm / hi_z_mm is then all there is).
+  double lo_clear_mm = std::numeric_limits<double>::quiet_NaN();
+  double hi_clear_mm = std::numeric_limits<double>::quiet_NaN();
   double near_mm = 0;          // the 5th percentile of its points' Z
   std::size_t n_points = 0;
   bool selected = false;       // part of the canopy this result reports

@@ -11,13 +11,17 @@
 // (view_slopes() from the rectified geometry), the near row's segments and, when a tree was
 // measured, its TreeMetrics and the index of the segment they describe.
 //
-//  - A segment end is cut by the view's edge when it lies within edge_margin_mm of that edge's
-//    ray at the end's own depth (RowSegment::lo_z_mm / hi_z_mm; the front depth near_mm where
-//    it is not known). The left edge is that of the stereo view: the points need both cameras,
-//    and the right camera's left edge ray lies a baseline inside the left one's
-//    (TrackFrame::left_offset_mm). A limb behind the front reaches further out on an edge ray
-//    than the front does, so the front depth would call a crown whose deep limb ends just
-//    inside the view cut, and lose that frame's measurement.
+//  - A segment end is cut by the view's edge when any of its points comes within
+//    edge_margin_mm of that edge's ray at the point's own depth (RowSegment::lo_clear_mm /
+//    hi_clear_mm). Where that is not known, the end's own point is tested at its depth
+//    (lo_z_mm / hi_z_mm; the front depth near_mm where that is not known either). The left edge
+//    is that of the stereo view: the points need both cameras, and the right camera's left edge
+//    ray lies a baseline inside the left one's (TrackFrame::left_offset_mm). Each point at its
+//    own depth: a limb behind the front reaches further out on an edge ray than the front does,
+//    so the front depth would call a crown whose deep limb ends just inside the view cut, and
+//    lose that frame's measurement; the extreme point's depth alone would call a crown clear of
+//    the edge whose front points stop at the edge while one point behind them lies a few cm
+//    further out.
 //  - Association: each segment's world extent against each track's world extent, widened by
 //    match_tolerance_mm (travel error, sparse points at the limbs); pairs taken one to one,
 //    largest overlap first. A track's extent is the last frame's, except (mode Tree) an end seen
@@ -78,7 +82,8 @@ struct TrackerParams {
   CanopyMode mode = CanopyMode::Tree;
   // Frames a track survives without a segment (a tree hidden by a sparse frame, a sprayer arm).
   int grace_frames = 1;
-  // A segment end this close to the image edge's ray (mm, at the segment's front depth) is cut.
+  // A segment end whose points come this close to the view edge's ray (mm, at each point's
+  // depth) is cut.
   // About two point spacings of stereodepth's grid at 2 m (19 px at 1296 px wide ~ 25 mm).
   double edge_margin_mm = 50;
   // World extents are compared widened by this (mm): the travel estimate's error per frame and
