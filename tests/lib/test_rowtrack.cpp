@@ -510,6 +510,54 @@ TEST(TreeTracker, AFrameBridgingAGapDoesNotJoinTwoTrees)
   }
 }
 
+TEST(TreeTracker, AnEndSeenOnceOffTheEdgeHoldsAgainstABridgingFrame)
+{
+  // Tree A (world -0.4..0.3 m) is seen whole once; the next frame's segment reaches across the
+  // gap to tree B (1.15..1.85 m), which enters the view at its right edge; then A and B are two
+  // segments, B cut by the edge. B is a tree of its own from the frame it is seen apart: A's
+  // end seen once off the edge is where A ends, not the bridging frame's.
+  TreeTracker tracker;
+  std::vector<TreeRecord> got;
+  for (int f = 0; f < 12; ++f) {
+    const double pos = 100.0 * f;
+    TrackFrame tf;
+    tf.position_mm = pos;
+    tf.left_slope = kLeftSlope;
+    tf.right_slope = kRightSlope;
+    auto add = [&](double lo, double hi) {
+      RowSegment s;
+      s.lo_mm = lo - pos;
+      s.hi_mm = std::min(hi - pos, kR - 9); // the view's right edge cuts it
+      s.near_mm = kNear;
+      s.n_points = 300;
+      if (s.hi_mm - s.lo_mm > 50)
+        tf.segments.push_back(s);
+    };
+    if (f == 1) {
+      add(-400, 1850); // stray points across the gap
+    } else {
+      add(-400, 300);
+      add(1150, 1850);
+    }
+    for (TreeRecord &r : tracker.update(tf))
+      got.push_back(r);
+    if (f >= 2) {
+      SCOPED_TRACE("frame " + std::to_string(f));
+      const auto open = tracker.open();
+      ASSERT_EQ(open.size(), 2u);
+      EXPECT_NEAR(open[1].start_m, 1.15, 1e-9);
+    }
+  }
+  for (TreeRecord &r : tracker.finish())
+    got.push_back(r);
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_NEAR(got[0].start_m, -0.4, 1e-9);
+  EXPECT_NEAR(got[0].end_m, 0.3, 1e-9);
+  EXPECT_NEAR(got[1].start_m, 1.15, 1e-9);
+  EXPECT_NEAR(got[1].end_m, 1.85, 1e-9);
+  EXPECT_EQ(got[1].frames_seen, 10);
+}
+
 TEST(TreeTracker, AnEnteringCrownSplitForOneFrameIsOneTree)
 {
   // The fourth tree enters at the right edge; in one frame a sparse column splits what is in

@@ -163,12 +163,12 @@ std::vector<TreeTracker::Open> TreeTracker::open() const
 
 std::pair<double, double> TreeTracker::robust_ends(const Track &k, double lo, double hi) const
 {
-  // Mode Tree: an end seen off the image edge in two frames or more is the median of those,
-  // which one frame of stray points across a gap does not move.
+  // Mode Tree: an end seen off the image edge is the median of the frames it was so seen in,
+  // which a later frame of stray points across a gap does not move (rowtrack.hpp).
   std::pair<double, double> e(lo, hi);
-  if (params_.mode == CanopyMode::Tree && k.starts.size() >= 2)
+  if (params_.mode == CanopyMode::Tree && !k.starts.empty())
     e.first = median_of(k.starts);
-  if (params_.mode == CanopyMode::Tree && k.ends.size() >= 2)
+  if (params_.mode == CanopyMode::Tree && !k.ends.empty())
     e.second = median_of(k.ends);
   return e;
 }

@@ -25,9 +25,10 @@
 //  - Association: each segment's world extent against each track's world extent, widened by
 //    match_tolerance_mm (travel error, sparse points at the limbs); pairs taken one to one,
 //    largest overlap first. A track's extent is the last frame's, except (mode Tree) an end seen
-//    off the image edge in two frames or more, which is their median: one frame whose segment
-//    reached across a gap (stray points bridging it) does not lend a tree its neighbour's
-//    canopy. A segment no track takes starts a new track (ids count up from 1) unless it
+//    off the image edge in a frame or more, which is the median of those: a frame whose segment
+//    reached across a gap (stray points bridging it to the next tree, entering the view, its end
+//    cut there) does not lend a tree its neighbour's canopy, and the next tree is not taken for
+//    more of it. A segment no track takes starts a new track (ids count up from 1) unless it
 //    overlaps a track already taken this frame: mode Tree counts it as a split of that tree (a
 //    sparse frame), mode Row as more of the same canopy; but a segment cut from the taken one at
 //    a valley (RowSegment::joined_lo / joined_hi: crowns grown into each other) is a tree of its
