@@ -36,6 +36,27 @@ constexpr double kNear = 2000;
 const double kLeftSlope = (-0.5 - 648.0) / 1100.0, kRightSlope = (1296 - 0.5 - 648.0) / 1100.0;
 const double kL = kLeftSlope * kNear, kR = kRightSlope * kNear; // -1179 and 1179 mm
 
+// A frame of that view at `position_mm`, with no segment yet.
+TrackFrame view_frame(double position_mm)
+{
+  TrackFrame tf;
+  tf.position_mm = position_mm;
+  tf.left_slope = kLeftSlope;
+  tf.right_slope = kRightSlope;
+  return tf;
+}
+
+// A segment of the row's front from lo_mm to hi_mm (camera x).
+RowSegment front_segment(double lo_mm, double hi_mm, std::size_t n_points = 500)
+{
+  RowSegment s;
+  s.lo_mm = lo_mm;
+  s.hi_mm = hi_mm;
+  s.near_mm = kNear;
+  s.n_points = n_points;
+  return s;
+}
+
 struct Sim {
   double speed_m_s = 0.5;
   double from_mm = 0, to_mm = 8000;   // the rig's true travel
@@ -99,9 +120,7 @@ std::vector<SimFrame> simulate(const std::vector<TrueTree> &trees, Sim sim)
     const double pos = sim.from_mm + f * step;
     s.true_position_mm = pos;
     TrackFrame &tf = s.frame;
-    tf.position_mm = pos + 8.0 * std::sin(1.7 * f); // the travel estimate's error
-    tf.left_slope = kLeftSlope;
-    tf.right_slope = kRightSlope;
+    tf = view_frame(pos + 8.0 * std::sin(1.7 * f)); // the travel estimate's error
     struct Vis {
       double lo, hi, a, b;
       int tree;
@@ -171,11 +190,7 @@ std::vector<SimFrame> simulate(const std::vector<TrueTree> &trees, Sim sim)
       }
     int front = -1;
     for (std::size_t i = 0; i < segs.size(); ++i) {
-      RowSegment r;
-      r.lo_mm = segs[i].lo;
-      r.hi_mm = segs[i].hi;
-      r.near_mm = kNear;
-      r.n_points = 100;
+      RowSegment r = front_segment(segs[i].lo, segs[i].hi, 100);
       r.joined_lo = segs[i].joined_lo;
       r.joined_hi = segs[i].joined_hi;
       tf.segments.push_back(r);
@@ -520,16 +535,10 @@ TEST(TreeTracker, AnEndSeenOnceOffTheEdgeHoldsAgainstABridgingFrame)
   std::vector<TreeRecord> got;
   for (int f = 0; f < 12; ++f) {
     const double pos = 100.0 * f;
-    TrackFrame tf;
-    tf.position_mm = pos;
-    tf.left_slope = kLeftSlope;
-    tf.right_slope = kRightSlope;
+    TrackFrame tf = view_frame(pos);
     auto add = [&](double lo, double hi) {
-      RowSegment s;
-      s.lo_mm = lo - pos;
-      s.hi_mm = std::min(hi - pos, kR - 9); // the view's right edge cuts it
-      s.near_mm = kNear;
-      s.n_points = 300;
+      // The view's right edge cuts it.
+      const RowSegment s = front_segment(lo - pos, std::min(hi - pos, kR - 9), 300);
       if (s.hi_mm - s.lo_mm > 50)
         tf.segments.push_back(s);
     };
@@ -623,15 +632,8 @@ TEST(TreeTracker, AStandingRigIsMeasuredByItsLatestFrames)
   // give 1.0 m) and a long stop does not grow the tracker without bound.
   TreeTracker tracker;
   for (int f = 0; f < 200; ++f) {
-    TrackFrame tf;
-    tf.position_mm = 0;
-    tf.left_slope = kLeftSlope;
-    tf.right_slope = kRightSlope;
-    RowSegment seg;
-    seg.lo_mm = -350;
-    seg.hi_mm = 350;
-    seg.near_mm = kNear;
-    seg.n_points = 500;
+    TrackFrame tf = view_frame(0);
+    RowSegment seg = front_segment(-350, 350);
     seg.selected = true;
     tf.segments = {seg};
     tf.metrics.tree_present = true;
@@ -657,18 +659,12 @@ TreeRecord stand_before(double lo_mm, double lo_z_mm, double left_offset_mm,
 {
   TreeTracker tracker;
   for (int f = 0; f < 5; ++f) {
-    TrackFrame tf;
-    tf.left_slope = kLeftSlope;
-    tf.right_slope = kRightSlope;
+    TrackFrame tf = view_frame(0);
     tf.left_offset_mm = left_offset_mm;
-    RowSegment seg;
-    seg.lo_mm = lo_mm;
-    seg.hi_mm = lo_mm + 700;
-    seg.near_mm = kNear;
+    RowSegment seg = front_segment(lo_mm, lo_mm + 700);
     seg.lo_z_mm = lo_z_mm;
     seg.hi_z_mm = kNear;
     seg.lo_clear_mm = lo_clear_mm;
-    seg.n_points = 500;
     seg.selected = true;
     tf.segments = {seg};
     tf.metrics.tree_present = true;
@@ -808,13 +804,8 @@ TEST(TreeTracker, ErrorsAreTypedAndNameTheProblem)
   TrackFrame f;
   f.position_mm = std::nan("");
   expect_typed_error<BadInput>([&] { t.update(f); }, "rig's position");
-  f.position_mm = 0;
-  f.left_slope = kLeftSlope;
-  f.right_slope = kRightSlope;
-  RowSegment seg;
-  seg.lo_mm = -300;
-  seg.hi_mm = 300;
-  seg.near_mm = kNear;
+  f = view_frame(0);
+  RowSegment seg = front_segment(-300, 300);
   seg.hi_clear_mm = std::numeric_limits<double>::infinity();
   f.segments = {seg};
   expect_typed_error<BadInput>([&] { t.update(f); }, "hi_clear_mm");
