@@ -204,10 +204,7 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
     segs[i] = {s.lo_mm + pos, s.hi_mm + pos, clear_lo <= params_.edge_margin_mm,
                clear_hi <= params_.edge_margin_mm};
   }
-  // Each track's extent to match against. Mode Tree: an end seen off the image edge in two
-  // frames or more is its median, not the last frame's: a frame whose segment reached across a
-  // gap (stray points bridging it) would otherwise lend the tree the next one's canopy, and the
-  // next tree entering the view would be taken for more of it.
+  // Each track's extent to match against: the last frame's, or its ends seen off the edge.
   std::vector<std::pair<double, double>> extent(nt);
   for (std::size_t t = 0; t < nt; ++t)
     extent[t] = robust_ends(tracks_[t], tracks_[t].lo_mm, tracks_[t].hi_mm);
