@@ -136,8 +136,8 @@ enum class PointClass : std::uint8_t {
 // min_gap_mm (mode Tree) or taken whole (mode Row: one per run all the same).
 struct RowSegment {
   double lo_mm = 0, hi_mm = 0; // X extent of its points (rectified-left frame)
-  // Z of the points at lo_mm and hi_mm: whether an end lies on the view's edge is a question of
-  // its own depth (a limb behind the front reaches further out on an edge ray). 0: unknown.
+  // Z of the points at lo_mm and hi_mm (a limb behind the front reaches further out on an edge
+  // ray; the edge test's fallback where the clearance below is unknown). 0: unknown.
   double lo_z_mm = 0, hi_z_mm = 0;
   // How far inside the stereo view's left (lo) and right (hi) edge its points keep: the least
   // distance along x of any of its points from that edge's ray at the point's own depth (mm;
