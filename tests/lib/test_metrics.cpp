@@ -226,6 +226,13 @@ TEST(Metrics, ExtremePointsReachAClusterBehindTheSilhouettesEdge)
   EXPECT_LT(sil.height_m, height * 0.95); // the silhouette's top is the nearer card's
   EXPECT_LT(rel(m.height_m, height), 0.01);
   EXPECT_LT(rel(m.width_m, width), 0.01); // each side's edge is its own card's
+  // The edges themselves, and the rays that bound the silhouette there (within a pixel): the
+  // nearer card's on the left, the farther one's on the right.
+  EXPECT_NEAR(m.left_m, -0.250, 0.008);
+  EXPECT_NEAR(m.right_m, 0.550, 0.008);
+  EXPECT_DOUBLE_EQ(m.right_m - m.left_m, m.width_m);
+  EXPECT_NEAR(m.left_slope, -250.0 / 1800, 1.0 / g.fx);
+  EXPECT_NEAR(m.right_slope, 550.0 / 2400, 1.0 / g.fx);
 
   // Five points at the silhouette's top matched at a background's disparity (as at a leaf's
   // edge against the wall): the same pixels, 1.6 times the depth, so their Y reaches far above

@@ -627,6 +627,10 @@ TreeMetrics compute_tree_metrics(const Silhouette &left, const std::vector<Point
     reach_extreme_points(pts, g, std::size_t(p.extreme_points), m.clipped, x_left, x_right,
                          y_top, y_bottom);
   m.width_m = (x_right - x_left) * kMmToM;
+  m.left_m = x_left * kMmToM;
+  m.right_m = x_right * kMmToM;
+  m.left_slope = s.left;
+  m.right_slope = s.right;
   m.height_m = (y_bottom - y_top) * kMmToM;
 
   // Area and perimeter at the equivalent depth, so that area ~ width * height for a box.

@@ -70,6 +70,38 @@ template <typename T> void push_capped(std::vector<T> &v, T value)
   v.push_back(std::move(value));
 }
 
+// Where a track's edge lies (world x, mm; dir = 1 for its high-x edge, -1 for its low-x one).
+// - A limb: the observation seen nearest the optical axis. Nearer the axis an edge may read
+//   further out than the next observation by what the crown's depth `depth_mm` can hide between
+//   their rays, depth_mm x |difference of their slopes|, and by kEdgeNoiseMm. One that reads
+//   further out is not the crown's, and the next one is taken (a frame clipped on the other
+//   side, whose silhouette ran on into the gap where the next row's leaves showed, read one
+//   crown 48 mm wide of its edge).
+// - A side only ever seen cut at a valley: no frame sees beyond the cut, which moves with the
+//   view as the outline's dip does; the median of the cuts.
+constexpr double kEdgeNoiseMm = 10; // the travel between the frames, a pixel, the limb's depth
+
+template <typename Edge> double axis_edge(std::vector<Edge> edges, double depth_mm, int dir)
+{
+  std::vector<Edge> limbs;
+  std::vector<double> cuts;
+  for (const Edge &e : edges) {
+    if (!e.at_valley)
+      limbs.push_back(e);
+    cuts.push_back(e.x_mm);
+  }
+  if (limbs.empty())
+    return median(cuts);
+  std::sort(limbs.begin(), limbs.end(),
+            [](const Edge &a, const Edge &b) { return std::abs(a.slope) < std::abs(b.slope); });
+  std::size_t i = 0;
+  while (i + 1 < limbs.size() &&
+         dir * (limbs[i].x_mm - limbs[i + 1].x_mm) >
+             depth_mm * std::abs(limbs[i + 1].slope - limbs[i].slope) + kEdgeNoiseMm)
+    ++i;
+  return limbs[i].x_mm;
+}
+
 double median_of(std::vector<double> v)
 {
   return median(v);
@@ -237,7 +269,7 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
       for (std::size_t t : over) {
         const Track &k = tracks_[t];
         piece[t] = k.frames_seen == 1 && k.missed == 0 && k.heights.empty() &&
-                   k.widths.empty() && k.distances.empty() &&
+                   k.distances.empty() &&
                    (direction_ > 0 ? k.ends.empty() : k.starts.empty()) &&
                    k.min_lo_mm >= segs[i].lo - tol && k.max_hi_mm <= segs[i].hi + tol;
         pieces += piece[t] ? 1 : 0;
@@ -365,10 +397,14 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
     if (!c.top && !c.bottom) {
       push_capped(k.heights, m.height_m);
     }
-    if (row || c.left || c.right || cut_lo || cut_hi)
-      ; // width: mode Row has none (the extent in view); a cut or clipped side is a lower bound
-    else
-      push_capped(k.widths, m.width_m);
+    // Width's edges (mode Row has none: the extent in view); a cut or clipped side is a lower
+    // bound.
+    if (!row && !c.left && !cut_lo)
+      push_capped(k.lefts, Track::Edge{m.left_slope, m.left_m / kMmToM + pos,
+                                       f.segments[obs[t].front()].joined_lo});
+    if (!row && !c.right && !cut_hi)
+      push_capped(k.rights, Track::Edge{m.right_slope, m.right_m / kMmToM + pos,
+                                        f.segments[obs[t].front()].joined_hi});
     if (c.any() || cut_lo || cut_hi)
       continue;
     push_capped(k.distances, m.distance_m);
@@ -493,10 +529,14 @@ std::vector<TreeRecord> TreeTracker::emit(std::vector<Track> &done)
       r.width_m = r.end_m - r.start_m;
       r.width_frames = r.has_width ? int(std::min(k.starts.size(), k.ends.size())) : 0;
     } else {
-      r.width_frames = int(k.widths.size());
-      r.has_width = !k.widths.empty();
-      if (r.has_width)
-        r.width_m = median_of(k.widths);
+      r.has_width = !k.lefts.empty() && !k.rights.empty();
+      if (r.has_width) {
+        // A crown about as deep as it is long along the row: how far behind its front a leaf
+        // cluster may stand.
+        const double depth_mm = (r.end_m - r.start_m) / kMmToM;
+        r.width_m = (axis_edge(k.rights, depth_mm, 1) - axis_edge(k.lefts, depth_mm, -1)) * kMmToM;
+        r.width_frames = int(std::min(k.lefts.size(), k.rights.size()));
+      }
     }
     r.has_depth = !k.distances.empty();
     if (r.has_depth) {

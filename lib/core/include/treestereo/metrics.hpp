@@ -154,6 +154,12 @@ struct TreeMetrics {
   std::size_t points = 0;         // valid points on the canopy the figures rest on
   std::size_t matches = 0;        // correspondences the points came from (points.size())
   double extent_depth_m = 0;      // the depth the silhouette was converted at (see header)
+  // The extent's edges along X (camera frame, m; width_m = right_m - left_m) and the slopes
+  // (X / Z) of the silhouette's bounding rays there. An edge seen near the optical axis is the
+  // canopy's extreme along X whatever its depth: the ray grazes it along Z. Seen off the axis,
+  // the ray grazes a limb in front, and a leaf cluster behind it that reaches further out is
+  // hidden (TreeTracker takes each edge from the frame that sees it nearest the axis).
+  double left_m = 0, right_m = 0, left_slope = 0, right_slope = 0;
   // How much of the silhouette has depth support (0..1): the share of its pixels within
   // MetricsParams::support_radius of a point that counts for the figures (depth_support() of
   // canopy.hpp). Low when the figures rest on a few points in one part of the canopy.

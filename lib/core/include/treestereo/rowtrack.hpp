@@ -41,10 +41,16 @@
 //    a track that is no such piece, is dropped without a record (its id is given again when it
 //    was the last one given).
 //  - Fusion (median over frames): height from the frames whose metrics are clipped neither at
-//    the top nor the bottom, width from those clipped neither left nor right, distance,
-//    thickness, bands and confidence from the frames fully in view (no clipped side). start_m
-//    from the frames whose segment is not cut on its low-x side, end_m likewise on the high-x
-//    side. A clipped extent never enters a median.
+//    the top nor the bottom, distance, thickness, bands and confidence from the frames fully in
+//    view (no clipped side). start_m from the frames whose segment is not cut on its low-x side,
+//    end_m likewise on the high-x side. A clipped extent never enters a median.
+//  - Width: each edge of the metrics' extent (TreeMetrics::left_m, right_m) along the row from
+//    the frame that saw it nearest the optical axis, of those where that side is neither clipped
+//    nor cut by the view's edge; a frame clipped on the other side counts. Seen off the axis, a
+//    crown's edge is the limb of a leaf cluster in front, and one behind it that reaches further
+//    out is hidden: the median of whole-view frames read the orchard's crowns 1.6 % narrow on
+//    average, 5 % where a back cluster stood out. A side cut at a valley (RowSegment::joined_lo,
+//    joined_hi: crowns grown into each other) is the edge only when no frame saw it free.
 //  - position_m is the canopy's centre along the row, (start_m + end_m) / 2: the trunk is not
 //    measured; on a symmetric crown the two agree.
 //  - confidence is the median over the fused frames, like every other fused value: the record
@@ -138,7 +144,8 @@ struct TreeRecord {
   double confidence = 0;
   int frames = 0;                  // frames fused: fully in view (mode Row: seen)
   int frames_seen = 0;             // frames its segment was seen in
-  int height_frames = 0, width_frames = 0; // frames each extent's median is over
+  // Frames each extent is fused over: height's median; width's two edges, the fewer of them.
+  int height_frames = 0, width_frames = 0;
   bool has_spacing = false;        // false on the first record
   double spacing_m = 0, gap_m = 0; // to the previous record (see the top of this header)
   bool lost = false;               // emitted because it was not seen for grace_frames + 1
@@ -175,7 +182,14 @@ private:
     double min_lo_mm = 0, max_hi_mm = 0; // farthest seen over all frames
     double near_mm = 0;                  // front depth in the last frame it was seen
     std::vector<double> starts, ends;    // world extents of uncut sides
-    std::vector<double> heights, widths, distances, thicknesses, confidences;
+    std::vector<double> heights, distances, thicknesses, confidences;
+    // The metrics' extent edges, world x (mm), with the slopes of their rays; `at_valley` those
+    // of sides cut at a valley.
+    struct Edge {
+      double slope = 0, x_mm = 0;
+      bool at_valley = false;
+    };
+    std::vector<Edge> lefts, rights;
     std::vector<std::vector<BandExtent>> bands; // per frame fully in view
     int frames_seen = 0, missed = 0;
     bool lost = false;
