@@ -49,8 +49,10 @@
 //    nor cut by the view's edge; a frame clipped on the other side counts. Seen off the axis, a
 //    crown's edge is the limb of a leaf cluster in front, and one behind it that reaches further
 //    out is hidden: the median of whole-view frames read the orchard's crowns 1.6 % narrow on
-//    average, 5 % where a back cluster stood out. A side cut at a valley (RowSegment::joined_lo,
-//    joined_hi: crowns grown into each other) is the edge only when no frame saw it free.
+//    average, 5 % where a back cluster stood out. An observation reading further out than the
+//    next nearest by more than the crown could hide between their rays is set aside. A side cut
+//    at a valley (RowSegment::joined_lo, joined_hi: crowns grown into each other) counts only
+//    when no frame saw it free, and then as the median of its cuts.
 //  - position_m is the canopy's centre along the row, (start_m + end_m) / 2: the trunk is not
 //    measured; on a symmetric crown the two agree.
 //  - confidence is the median over the fused frames, like every other fused value: the record
