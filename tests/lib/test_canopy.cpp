@@ -6,6 +6,8 @@
 #include "treestereo/rowtrack.hpp"
 #include "typed_error.hpp"
 
+#include "../../lib/core/src/mask_strips.hpp"
+
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -299,6 +301,34 @@ TEST(Canopy, GrassWithoutTextureIsNotTakenWithTheCrown)
   // The crown in the one-view strip is kept.
   const cv::Rect sr(0, 0, int(strip), 480);
   EXPECT_GT(cv::countNonZero(c.silhouette.mask(sr) & cut(sr)), 0.9 * cv::countNonZero(cut(sr)));
+}
+
+// The split's last step (lib/core/src/mask_strips.hpp): a crown's disc with, out of its left
+// limb, a strip 7 px tall running 35 px out (the grass's top rows where the grass meets the
+// wall behind), out of its right limb a leaf 3 px out and 6 px tall, and a trunk 4 px wide
+// under it. Only the strip goes, all but its first 3 px.
+TEST(Canopy, AThinStripRunningOutOfTheCrownIsCutOff)
+{
+  cv::Mat mask(240, 320, CV_8U, cv::Scalar(0));
+  cv::circle(mask, cv::Point(160, 100), 60, cv::Scalar(255), cv::FILLED);
+  const cv::Mat crown = mask.clone();
+  cv::rectangle(mask, cv::Rect(65, 110, 40, 7), cv::Scalar(255), cv::FILLED); // to the limb
+  cv::rectangle(mask, cv::Rect(219, 97, 4, 6), cv::Scalar(255), cv::FILLED);  // 220, 221, 222
+  cv::rectangle(mask, cv::Rect(158, 150, 4, 60), cv::Scalar(255), cv::FILLED);
+  const cv::Mat before = mask.clone();
+  ASSERT_EQ(cv::boundingRect(mask).x, 65);
+
+  detail::cut_thin_strips(mask, 11, 3);
+  EXPECT_EQ(cv::countNonZero(crown & ~mask), 0);            // the crown whole
+  EXPECT_EQ(cv::countNonZero(before(cv::Rect(219, 97, 4, 6)) & ~mask(cv::Rect(219, 97, 4, 6))), 0);
+  EXPECT_EQ(cv::countNonZero(before(cv::Rect(158, 150, 4, 60)) & ~mask(cv::Rect(158, 150, 4, 60))), 0);
+  const cv::Rect box = cv::boundingRect(mask);
+  // The limb at y 110-116 lies at x 160 - sqrt(60^2 - 16^2) = 102.2 at most: the strip keeps 3 px
+  // out of it, the disc reaches x = 100.
+  EXPECT_GE(box.x, 98);
+  EXPECT_LE(box.x, 100);
+  EXPECT_EQ(box.br().x, 223); // the leaf
+  EXPECT_EQ(cv::countNonZero(mask(cv::Rect(65, 110, 30, 7))), 0);
 }
 
 TEST(Canopy, TwoCanopiesThirtyCentimetresApart)

@@ -3,6 +3,7 @@
 #include "treestereo/errors.hpp"
 #include "treestereo/features.hpp"
 #include "treestereo/segment.hpp"
+#include "mask_strips.hpp"
 #include "zncc.hpp"
 
 #include <opencv2/calib3d.hpp>
@@ -75,6 +76,9 @@ constexpr int kMinOtherPoints = 3;
 constexpr double kMinOtherShare = 0.05;
 // A piece of a split region smaller than this share of the canopy is a crumb.
 constexpr double kMinPieceShare = 0.005;
+// Strips of the split canopy less than kStripPx tall (full-size px) that reach more than
+// kStripReachPx out of the canopy's body are cut off (section 4 of select_canopy).
+constexpr int kStripPx = 11, kStripReachPx = 3;
 // Mask value of a pixel not yet decided.
 constexpr uchar kUnknown = 128;
 // A region with an area of at least one sample spacing squared farther than this many spacings
@@ -1036,14 +1040,24 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
         m[x] = keep[std::size_t(c[x])] ? 255 : 0;
     }
     // Back to full size, inside the colour mask's mixed regions.
+    cv::Mat part(box.size(), CV_8U, cv::Scalar(0));
     for (int y = 0; y < box.height; ++y) {
       const int *lab = labels.ptr<int>(y + box.y) + box.x;
       const uchar *sp = split.ptr<uchar>(y / f);
-      uchar *m = mask.ptr<uchar>(y + box.y) + box.x;
+      uchar *m = part.ptr<uchar>(y);
       for (int x = 0; x < box.width; ++x)
         if (sp[x / f] && kind[std::size_t(lab[x])] == 2)
           m[x] = 255;
     }
+    // A strip of it a few pixels tall that runs out of the canopy's body is not canopy: where
+    // grass meets what stands behind it (a wall, the next row), the grass's top rows beside a
+    // crown take the crown's samples as their nearest, and the split's opening on its grid
+    // does not see how thin the vegetation mask cuts them. Such a strip set a crown's edge
+    // 28-45 mm out. What is less than kStripPx tall goes, save within kStripReachPx of the
+    // body (a leaf sticking out of the crown's edge stays).
+    detail::cut_thin_strips(part, kStripPx, kStripReachPx);
+    cv::Mat into = mask(box);
+    into |= part;
   }
   // Described over the canopy's bounding box and a pixel around it (a contour finder's border
   // reads as background, as the view's edge does): the rest of the view holds no canopy.
