@@ -399,12 +399,13 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
     }
     // Width's edges (mode Row has none: the extent in view); a cut or clipped side is a lower
     // bound.
-    if (!row && !c.left && !cut_lo)
-      push_capped(k.lefts, Track::Edge{m.left_slope, m.left_m / kMmToM + pos,
-                                       f.segments[obs[t].front()].joined_lo});
-    if (!row && !c.right && !cut_hi)
-      push_capped(k.rights, Track::Edge{m.right_slope, m.right_m / kMmToM + pos,
-                                        f.segments[obs[t].front()].joined_hi});
+    if (!row) {
+      const RowSegment &own = f.segments[obs[t].front()];
+      if (!c.left && !cut_lo)
+        push_capped(k.lefts, Track::Edge{m.left_slope, m.left_m / kMmToM + pos, own.joined_lo});
+      if (!c.right && !cut_hi)
+        push_capped(k.rights, Track::Edge{m.right_slope, m.right_m / kMmToM + pos, own.joined_hi});
+    }
     if (c.any() || cut_lo || cut_hi)
       continue;
     push_capped(k.distances, m.distance_m);
