@@ -313,15 +313,16 @@ TEST(Canopy, AThinStripRunningOutOfTheCrownIsCutOff)
   cv::circle(mask, cv::Point(160, 100), 60, cv::Scalar(255), cv::FILLED);
   const cv::Mat crown = mask.clone();
   cv::rectangle(mask, cv::Rect(65, 110, 40, 7), cv::Scalar(255), cv::FILLED); // to the limb
-  cv::rectangle(mask, cv::Rect(219, 97, 4, 6), cv::Scalar(255), cv::FILLED);  // 220, 221, 222
+  cv::rectangle(mask, cv::Rect(219, 97, 4, 6), cv::Scalar(255), cv::FILLED); // to x = 222
   cv::rectangle(mask, cv::Rect(158, 150, 4, 60), cv::Scalar(255), cv::FILLED);
   const cv::Mat before = mask.clone();
   ASSERT_EQ(cv::boundingRect(mask).x, 65);
 
   detail::cut_thin_strips(mask, 11, 3);
-  EXPECT_EQ(cv::countNonZero(crown & ~mask), 0);            // the crown whole
-  EXPECT_EQ(cv::countNonZero(before(cv::Rect(219, 97, 4, 6)) & ~mask(cv::Rect(219, 97, 4, 6))), 0);
-  EXPECT_EQ(cv::countNonZero(before(cv::Rect(158, 150, 4, 60)) & ~mask(cv::Rect(158, 150, 4, 60))), 0);
+  EXPECT_EQ(cv::countNonZero(crown & ~mask), 0); // the crown whole
+  const cv::Rect leaf(219, 97, 4, 6), trunk(158, 150, 4, 60);
+  EXPECT_EQ(cv::countNonZero(before(leaf) & ~mask(leaf)), 0);
+  EXPECT_EQ(cv::countNonZero(before(trunk) & ~mask(trunk)), 0);
   const cv::Rect box = cv::boundingRect(mask);
   // The limb at y 110-116 lies at x 160 - sqrt(60^2 - 16^2) = 102.2 at most: the strip keeps 3 px
   // out of it, the disc reaches x = 100.
