@@ -312,15 +312,16 @@ TEST(Canopy, AThinStripRunningOutOfTheCrownIsCutOff)
   cv::Mat mask(240, 320, CV_8U, cv::Scalar(0));
   cv::circle(mask, cv::Point(160, 100), 60, cv::Scalar(255), cv::FILLED);
   const cv::Mat crown = mask.clone();
-  cv::rectangle(mask, cv::Rect(65, 110, 40, 7), cv::Scalar(255), cv::FILLED); // to the limb
-  cv::rectangle(mask, cv::Rect(219, 97, 4, 6), cv::Scalar(255), cv::FILLED); // to x = 222
-  cv::rectangle(mask, cv::Rect(158, 150, 4, 60), cv::Scalar(255), cv::FILLED);
+  const cv::Rect strip(65, 110, 40, 7); // on into the limb
+  const cv::Rect leaf(219, 97, 4, 6);   // to x = 222, the disc's edge at 220
+  const cv::Rect trunk(158, 150, 4, 60);
+  for (const cv::Rect &r : {strip, leaf, trunk})
+    cv::rectangle(mask, r, cv::Scalar(255), cv::FILLED);
   const cv::Mat before = mask.clone();
   ASSERT_EQ(cv::boundingRect(mask).x, 65);
 
   detail::cut_thin_strips(mask, 11, 3);
   EXPECT_EQ(cv::countNonZero(crown & ~mask), 0); // the crown whole
-  const cv::Rect leaf(219, 97, 4, 6), trunk(158, 150, 4, 60);
   EXPECT_EQ(cv::countNonZero(before(leaf) & ~mask(leaf)), 0);
   EXPECT_EQ(cv::countNonZero(before(trunk) & ~mask(trunk)), 0);
   const cv::Rect box = cv::boundingRect(mask);

@@ -1052,9 +1052,7 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     // A strip of it a few pixels tall that runs out of the canopy's body is not canopy: where
     // grass meets what stands behind it (a wall, the next row), the grass's top rows beside a
     // crown take the crown's samples as their nearest, in a strip taller than the opening
-    // above removes. Such a strip set a crown's edge 28-45 mm out. What is less than kStripPx
-    // tall goes, save within kStripReachPx of the body (a leaf sticking out of the crown's edge
-    // stays).
+    // above removes. Such a strip set a crown's edge 28-45 mm out.
     detail::cut_thin_strips(part, kStripPx, kStripReachPx);
     cv::Mat into = mask(box);
     into |= part;
