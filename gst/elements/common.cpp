@@ -309,6 +309,7 @@ GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, 
     o.hi_z_m = g.hi_z_mm * kMmToM;
     o.lo_clear_m = g.lo_clear_mm * kMmToM;
     o.hi_clear_m = g.hi_clear_mm * kMmToM;
+    o.trunk_m = g.trunk_mm * kMmToM;
   }
   return meta;
 }
@@ -332,6 +333,7 @@ std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta)
     o.hi_z_mm = g.hi_z_m * 1e3;
     o.lo_clear_mm = g.lo_clear_m * 1e3;
     o.hi_clear_mm = g.hi_clear_m * 1e3;
+    o.trunk_mm = g.trunk_m * 1e3;
     out.push_back(o);
   }
   return out;

@@ -534,7 +534,8 @@ gst_buffer_add_tree_stereo_canopy_meta (GstBuffer * buffer, GstTreeStereoCanopyM
     guint i;
     meta->mode = mode;
     for (i = 0; i < GST_TREE_STEREO_MAX_SEGMENTS; i++)
-      meta->segments[i].lo_clear_m = meta->segments[i].hi_clear_m = NAN;
+      meta->segments[i].lo_clear_m = meta->segments[i].hi_clear_m =
+          meta->segments[i].trunk_m = NAN;
   }
   return meta;
 }

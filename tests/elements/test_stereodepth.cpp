@@ -694,6 +694,7 @@ struct OrchardRun {
   int canopy_x = 0, canopy_w = 0; // the canopy meta's left-view box (px)
   int veg_x = 0, veg_w = 0;       // the vegetation meta's left-view box (px)
   double truth_width_m = 0, truth_z_m = 0, truth_x_m = 0, fx = 0, cx = 0;
+  double truth_trunk_x_m = 0; // the trunk's axis at the canopy's centre, rectified-left frame
   GstTreeStereoDepthStats stats{};
   guint n_points = 0, n_invalid = 0;
   guint valid_off_canopy = 0; // valid points whose left pixel is off the canopy mask
@@ -730,6 +731,12 @@ void orchard_handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
   r.truth_width_m = tm->truth.width_m;
   r.truth_z_m = tm->truth.centroid_m[2];
   r.truth_x_m = tm->truth.centroid_m[0];
+  /* the trunk's axis (offset_x_m, trunk_distance_m) at the canopy centre's height, rotated
+   * into the rectified-left frame the segments are in */
+  const double trunk[3] = {tm->truth.offset_x_m, tm->truth.centroid_m[1],
+                           tm->truth.trunk_distance_m};
+  for (int i = 0; i < 3; i++)
+    r.truth_trunk_x_m += gm->R1[i] * trunk[i];
   const GstTreeStereoVegetationMeta *vm = gst_buffer_get_tree_stereo_vegetation_meta(buf);
   fail_unless(vm != nullptr && vm->views[0].present);
   r.veg_x = vm->views[0].bbox_x;
@@ -965,6 +972,14 @@ GST_START_TEST(test_orchard_canopy_is_the_tree_in_front)
     fail_unless(std::isfinite(s.lo_clear_m) && std::isfinite(s.hi_clear_m));
     if (s.selected)
       fail_unless(s.lo_clear_m > 0.05 && s.hi_clear_m > 0.05);
+    /* the trunk under the tree in front, where the scene stands it; no other segment has one */
+    if (s.selected) {
+      g_print("[ orchard ] trunk at x %.4f m (truth %.4f m)\n", s.trunk_m, r.truth_trunk_x_m);
+      fail_unless(std::abs(s.trunk_m - r.truth_trunk_x_m) <= 0.015,
+                  "trunk at %.4f m, truth %.4f m", s.trunk_m, r.truth_trunk_x_m);
+    } else {
+      fail_unless(std::isnan(s.trunk_m));
+    }
   }
   /* the next tree, entering the view on the right: its points reach the edge */
   fail_unless(!r.segments.back().selected && r.segments.back().hi_clear_m < 0.05,

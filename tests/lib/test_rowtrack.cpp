@@ -70,6 +70,11 @@ struct Sim {
   // Mode Tree: touching canopies are one segment until both show this much in view (mm), then
   // two segments cut at the contact (a valley of the top line: joined_hi / joined_lo). < 0: off.
   double valley_from_mm = -1;
+  // Where in the crowns' overlap the valley's cut falls: 0 at the second crown's start, 1 at the
+  // first crown's end (the outline dips where the nearer crown's limb is, not always midway).
+  double valley_at = 0.5;
+  // The measured tree's trunk shows below its crown (RowSegment::trunk_mm, the crown's middle).
+  bool trunks = false;
   // Stray points bridge the gap after this tree in the frames it is in view with the next one
   // entering (the next tree's canopy less than 300 mm in view): its segment runs on to the next
   // tree's (seen as one).
@@ -232,12 +237,15 @@ std::vector<SimFrame> simulate(const std::vector<TrueTree> &trees, Sim sim)
                            sim.top_clipped_tree);
       if (v.tree == sim.wide_edge_tree && std::abs(v.b) <= 0.5 * std::abs(step))
         tf.metrics.right_m += 0.05;
-      // A side cut at a valley ends at the cut, the middle of the crowns' overlap.
+      // A side cut at a valley ends at the cut, in the crowns' overlap.
       const std::size_t i = std::size_t(front);
+      const double at = sim.valley_at;
       if (v.joined_hi && i + 1 < segs.size())
-        tf.metrics.right_m = 0.5 * (v.b + segs[i + 1].a) / 1000.0;
+        tf.metrics.right_m = (at * v.b + (1 - at) * segs[i + 1].a) / 1000.0;
       if (v.joined_lo && i > 0)
-        tf.metrics.left_m = 0.5 * (segs[i - 1].b + v.a) / 1000.0;
+        tf.metrics.left_m = (at * segs[i - 1].b + (1 - at) * v.a) / 1000.0;
+      if (sim.trunks)
+        tf.segments[i].trunk_mm = 0.5 * (v.a + v.b) + 3.0 * std::sin(2.3 * f);
       tf.metrics.width_m = tf.metrics.right_m - tf.metrics.left_m;
       tf.segments[std::size_t(front)].selected = true;
     }
@@ -594,6 +602,41 @@ TEST(TreeTracker, TouchingCrownsCutAtTheirValleyAreTwoTrees)
   }
 }
 
+// The outline of touching crowns dips where the nearer one's limb is: the cut lies at the second
+// crown's start, 100 mm inside the first. A trunk seen below the first gives its hidden side:
+// the free side mirrored about it.
+TEST(TreeTracker, ACrownCutAtAValleyReachesAsFarFromItsTrunkAsItsFreeSide)
+{
+  const std::vector<TrueTree> row = {{1000, 1750, 0.9, 2.0}, {1650, 2400, 1.0, 2.0},
+                                     {2900, 3500, 0.95, 2.0}};
+  for (bool trunks : {false, true})
+    for (double speed : {0.5, 2.0}) {
+      SCOPED_TRACE(std::string(trunks ? "trunks seen" : "no trunk") + ", speed " +
+                   std::to_string(speed));
+      Sim sim;
+      sim.speed_m_s = speed;
+      sim.to_mm = 6000;
+      sim.top_clipped_tree = -1;
+      sim.valley_from_mm = 300;
+      sim.valley_at = 0;
+      sim.trunks = trunks;
+      TreeTracker tracker;
+      const auto got = run(tracker, simulate(row, sim));
+      ASSERT_EQ(got.size(), 3u);
+      for (std::size_t i = 0; i < 3; ++i)
+        ASSERT_TRUE(got[i].record.has_width) << i;
+      const double first = got[0].record.width_m - row[0].width_m();
+      // The mirror doubles the free edge's error and the trunk's: as expect_row()'s.
+      if (trunks)
+        EXPECT_NEAR(first, 0, 0.03);
+      else
+        EXPECT_LT(first, -0.07); // the cut, 100 mm inside
+      // The second's cut side is its own start: the mirror never moves an edge inward.
+      EXPECT_NEAR(got[1].record.width_m, row[1].width_m(), 0.03);
+      EXPECT_NEAR(got[2].record.width_m, row[2].width_m(), 0.03);
+    }
+}
+
 // Stray points bridge the 800 mm gap between trees 1 and 2 while tree 2 enters the view: tree 1
 // keeps its own extent (its end seen off the edge before), tree 2 gets its own record.
 TEST(TreeTracker, AFrameBridgingAGapDoesNotJoinTwoTrees)
@@ -896,6 +939,10 @@ TEST(TreeTracker, ErrorsAreTypedAndNameTheProblem)
   seg.hi_clear_mm = std::numeric_limits<double>::infinity();
   f.segments = {seg};
   expect_typed_error<BadInput>([&] { t.update(f); }, "hi_clear_mm");
+  seg = front_segment(-300, 300);
+  seg.trunk_mm = -std::numeric_limits<double>::infinity();
+  f.segments = {seg};
+  expect_typed_error<BadInput>([&] { t.update(f); }, "trunk_mm");
   double l = 0, r = 0, off = 0;
   expect_typed_error<BadInput>([&] { view_slopes(StereoGeometry(), l, r, off); },
                                "stereo geometry");

@@ -495,6 +495,7 @@ fill_canopy (GstTreeStereoCanopyMeta * c, GstBuffer * mask)
     c->segments[i].hi_z_m = 2.2 + 0.05 * i;
     c->segments[i].lo_clear_m = 0.03 + 0.1 * i;
     c->segments[i].hi_clear_m = -0.004 + 0.2 * i;
+    c->segments[i].trunk_m = i == 1 ? -0.35 : NAN;
   }
 }
 
@@ -526,6 +527,8 @@ assert_canopy_figures_equal (const GstTreeStereoCanopyMeta * a, const GstTreeSte
     fail_unless_equals_float (a->segments[i].hi_z_m, b->segments[i].hi_z_m);
     fail_unless_equals_float (a->segments[i].lo_clear_m, b->segments[i].lo_clear_m);
     fail_unless_equals_float (a->segments[i].hi_clear_m, b->segments[i].hi_clear_m);
+    fail_unless (a->segments[i].trunk_m == b->segments[i].trunk_m ||
+        (isnan (a->segments[i].trunk_m) && isnan (b->segments[i].trunk_m)));
   }
 }
 
@@ -541,9 +544,12 @@ GST_START_TEST (test_canopy_meta)
   fail_if (c->view.present);
   fail_unless (c->view.mask == NULL && c->view.contour == NULL);
   fail_unless_equals_float (c->near_m, 0.0);
-  /* a segment's clearance from the view's edges: unknown until given (0 would be on the edge) */
+  /* a segment's clearance from the view's edges and its trunk: unknown until given (0 would be
+   * on the edge, on the optical axis) */
   fail_unless (isnan (c->segments[0].lo_clear_m) && isnan (c->segments[0].hi_clear_m));
   fail_unless (isnan (c->segments[GST_TREE_STEREO_MAX_SEGMENTS - 1].hi_clear_m));
+  fail_unless (isnan (c->segments[0].trunk_m));
+  fail_unless (isnan (c->segments[GST_TREE_STEREO_MAX_SEGMENTS - 1].trunk_m));
   fail_unless (gst_buffer_get_tree_stereo_canopy_meta (buf) == c);
   fail_unless (gst_meta_api_type_has_tag (GST_TREE_STEREO_CANOPY_META_API_TYPE,
           g_quark_from_static_string (GST_META_TAG_VIDEO_STR)));

@@ -1126,6 +1126,11 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
     cp.sample_spacing_px = coarse_stats.step;
   out.canopy =
       select_canopy(vegetation.mask, pts, g, cp, left_grey, right_grey, p.grid.order, &vegetation);
+  if (out.canopy.present && cp.mode == CanopyMode::Tree)
+    for (RowSegment &s : out.canopy.segments)
+      if (s.selected)
+        s.trunk_mm = find_trunk(left_grey, right_grey, vegetation.mask, out.canopy.silhouette.mask,
+                                s, out.canopy.ground, g);
 
   // 2. The canopy alone, densely: seeded by the matches on it.
   out.matches = seeds;

@@ -46,16 +46,17 @@ void check_frame(const TrackFrame &f)
     if (!std::isfinite(s.lo_mm) || !std::isfinite(s.hi_mm) || s.hi_mm < s.lo_mm ||
         !std::isfinite(s.near_mm) || !(s.near_mm > 0) || !(s.lo_z_mm >= 0) ||
         !(s.hi_z_mm >= 0) || !std::isfinite(s.lo_z_mm) || !std::isfinite(s.hi_z_mm) ||
-        std::isinf(s.lo_clear_mm) || std::isinf(s.hi_clear_mm))
+        std::isinf(s.lo_clear_mm) || std::isinf(s.hi_clear_mm) || std::isinf(s.trunk_mm))
       throw BadInput("A row segment in the frame cannot be used: each needs finite lo_mm <= "
                      "hi_mm, a near_mm above 0, lo_z_mm, hi_z_mm finite and 0 or above, and "
-                     "lo_clear_mm, hi_clear_mm finite or NaN (unknown).",
+                     "lo_clear_mm, hi_clear_mm, trunk_mm finite or NaN (unknown).",
                      "RowSegment: lo_mm=" + std::to_string(s.lo_mm) + " hi_mm=" +
                          std::to_string(s.hi_mm) + " near_mm=" + std::to_string(s.near_mm) +
                          " lo_z_mm=" + std::to_string(s.lo_z_mm) +
                          " hi_z_mm=" + std::to_string(s.hi_z_mm) +
                          " lo_clear_mm=" + std::to_string(s.lo_clear_mm) +
-                         " hi_clear_mm=" + std::to_string(s.hi_clear_mm));
+                         " hi_clear_mm=" + std::to_string(s.hi_clear_mm) +
+                         " trunk_mm=" + std::to_string(s.trunk_mm));
 }
 
 // A track keeps at most this many samples of each figure (the latest): a tree in view for longer
@@ -105,6 +106,30 @@ template <typename Edge> double axis_edge(std::vector<Edge> edges, double depth_
 double median_of(std::vector<double> v)
 {
   return median(v);
+}
+
+// A side only ever seen cut at a valley (crowns grown into each other) ends beyond the cut: the
+// neighbour's crown hides the rest. A pruned crown stands about its trunk, so with the trunk seen
+// (the median of the frames that saw it) and the other side a limb, the hidden side reaches as
+// far from the trunk as the limb does: the limb mirrored, never inside the cut. The limb's error
+// counts twice in the width then, as the trunk's does.
+
+template <typename Edge>
+void mirror_hidden_side(const std::vector<Edge> &lefts, const std::vector<Edge> &rights,
+                        const std::vector<double> &trunks, double &lo, double &hi)
+{
+  const auto cut = [](const std::vector<Edge> &e) {
+    return std::all_of(e.begin(), e.end(), [](const Edge &x) { return x.at_valley; });
+  };
+  if (trunks.empty() || cut(lefts) == cut(rights))
+    return;
+  const double t = median_of(trunks);
+  if (!(t > lo && t < hi))
+    return;
+  if (cut(rights))
+    hi = std::max(hi, 2 * t - lo);
+  else
+    lo = std::min(lo, 2 * t - hi);
 }
 
 // Overlap length of [a0, a1] and [b0, b1] (negative: the gap between them).
@@ -405,6 +430,8 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
         push_capped(k.lefts, Track::Edge{m.left_slope, m.left_m / kMmToM + pos, own.joined_lo});
       if (!c.right && !cut_hi)
         push_capped(k.rights, Track::Edge{m.right_slope, m.right_m / kMmToM + pos, own.joined_hi});
+      if (std::isfinite(own.trunk_mm))
+        push_capped(k.trunks, own.trunk_mm + pos);
     }
     if (c.any() || cut_lo || cut_hi)
       continue;
@@ -535,7 +562,9 @@ std::vector<TreeRecord> TreeTracker::emit(std::vector<Track> &done)
         // A crown about as deep as it is long along the row: how far behind its front a leaf
         // cluster may stand.
         const double depth_mm = (r.end_m - r.start_m) / kMmToM;
-        r.width_m = (axis_edge(k.rights, depth_mm, 1) - axis_edge(k.lefts, depth_mm, -1)) * kMmToM;
+        double lo = axis_edge(k.lefts, depth_mm, -1), hi = axis_edge(k.rights, depth_mm, 1);
+        mirror_hidden_side(k.lefts, k.rights, k.trunks, lo, hi);
+        r.width_m = (hi - lo) * kMmToM;
         r.width_frames = int(std::min(k.lefts.size(), k.rights.size()));
       }
     }

@@ -333,6 +333,8 @@ GType gst_tree_stereo_canopy_mode_get_type (void);
  * @lo_clear_m: how far inside the stereo view's left edge its points keep: the least distance
  *   along x of any of its points from that edge's ray at the point's own depth (m; NaN: unknown)
  * @hi_clear_m: likewise from the view's right edge
+ * @trunk_m: X of its trunk where it shows below the crown (m; NaN: not seen; mode tree, the
+ *   selected segment)
  *
  * One stretch of the near row along x, separated from the next by an empty stretch (mode tree),
  * or one continuous canopy (mode row).
@@ -349,6 +351,7 @@ typedef struct {
   gdouble hi_z_m;
   gdouble lo_clear_m;
   gdouble hi_clear_m;
+  gdouble trunk_m;
 } GstTreeStereoRowSegment;
 
 /* Segments a canopy meta holds at most (the view of a rig between two rows holds a few). */
@@ -557,7 +560,8 @@ GstTreeStereoMetricsMeta *gst_buffer_add_tree_stereo_metrics_meta (GstBuffer *bu
  * @width_m: the canopy's true horizontal extent (m)
  * @trunk_distance_m: depth of the trunk's axis (m)
  * @centroid_m: the canopy's 3D centroid (m), left camera frame
- * @offset_x_m: the scene's lateral offset at this frame (the sprayer's travel)
+ * @offset_x_m: X of the trunk axis of the tree in front, left camera frame (m): the scene's
+ *   lateral offset at this frame (the sprayer's travel)
  * @baseline_mm: the rig's baseline
  */
 typedef struct {

@@ -154,6 +154,9 @@ struct RowSegment {
   // Cut from the segment before (lo) or after (hi) it where their crowns touch (a valley of the
   // top line, CanopyParams::valley_share), not separated by an empty stretch.
   bool joined_lo = false, joined_hi = false;
+  // X of its trunk where it shows below the crown (find_trunk(); mm; NaN: not seen). Set for
+  // the selected segment of mode Tree.
+  double trunk_mm = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct CanopyResult {
@@ -222,6 +225,25 @@ struct CanopyDepth {
 CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhouette &vegetation,
                          const std::vector<StereoMatch> &seeds, const StereoGeometry &geometry,
                          const CanopyDepthParams &params);
+
+// Where the tree of `segment` stands: the X (mm, rectified-left frame) of the trunk seen below its
+// crown, NaN when none shows. A crown grown into its neighbour's hides part of itself; a pruned
+// crown stands about its trunk, so the trunk tells how far the hidden part reaches (TreeTracker).
+// - Where: the rows below the crown's lowest canopy pixel (`canopy`, its columns), down two
+//   thirds of the way to the ground under the crown (`ground`; the image's bottom when not found):
+//   lower down the ground itself nears the trunk's depth.
+// - What: columns whose strip of those rows matches the right view at a depth of the crown (from
+//   its front, segment.near_mm, to as deep behind it as it is long: ZNCC of a 5-column window
+//   of at least kTrunkZncc) and is not plant (`vegetation` zero in most of it). The ground behind
+//   lies deeper than the crown there, so it does not match at the crown's depth.
+// - Which: the widest such run of columns, between kTrunkMinMm and a third of the segment
+//   across; none when a second run holds more than half as many columns (two trunks, or a
+//   post: no telling which).
+// `left`, `right`: rectified grey views (CV_8UC1); `vegetation`, `canopy`: CV_8U masks of the
+// view. Throws BadInput when the images do not fit the geometry's view.
+double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
+                  const cv::Mat &canopy, const RowSegment &segment, const GroundPlane &ground,
+                  const StereoGeometry &geometry);
 
 // The share of the mask's pixels within radius_px of a point: how much of a silhouette has depth
 // support. 0 for an empty mask.

@@ -52,9 +52,12 @@
 //    average, 5 % where a back cluster stood out. An observation reading further out than the
 //    next nearest by more than the crown could hide between their rays is set aside. A side cut
 //    at a valley (RowSegment::joined_lo, joined_hi: crowns grown into each other) counts only
-//    when no frame saw it free, and then as the median of its cuts.
-//  - position_m is the canopy's centre along the row, (start_m + end_m) / 2: the trunk is not
-//    measured; on a symmetric crown the two agree.
+//    when no frame saw it free, and then as the median of its cuts. The cut lies inside the
+//    crown (the neighbour hides the rest; the outline dips where the nearer crown's limb is):
+//    with its trunk seen (RowSegment::trunk_mm, the median over the frames) and the other side
+//    free, that side is the free one mirrored about the trunk, never inside the cut.
+//  - position_m is the canopy's centre along the row, (start_m + end_m) / 2, not the trunk's
+//    (seen in some frames only); on a symmetric crown the two agree.
 //  - confidence is the median over the fused frames, like every other fused value: the record
 //    stands on the median frame, and one frame of poor depth support (a blurred view) does not
 //    say the record is poorly supported.
@@ -192,6 +195,7 @@ private:
       bool at_valley = false;
     };
     std::vector<Edge> lefts, rights;
+    std::vector<double> trunks; // world x (mm) of its trunk, where seen (RowSegment::trunk_mm)
     std::vector<std::vector<BandExtent>> bands; // per frame fully in view
     int frames_seen = 0, missed = 0;
     bool lost = false;

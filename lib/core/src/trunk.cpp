@@ -1,0 +1,189 @@
+// find_trunk(): where a tree's trunk shows below its crown (canopy.hpp says what and why).
+#include "treestereo/canopy.hpp"
+
+#include "treestereo/errors.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace treestereo {
+
+namespace {
+
+constexpr int kHalf = 2;            // the match window: 2 * kHalf + 1 columns of the band
+constexpr double kMinZncc = 0.6;    // a column matches at the crown's depth
+constexpr double kMinBare = 0.9;    // share of the column's band that is not plant
+constexpr double kMinTrunkMm = 20;  // narrower runs are a twig's edge or noise
+constexpr double kMaxShare = 1.0 / 3; // of the segment across: wider is ground or a wall
+constexpr int kMinRows = 6;         // a band shorter than this tells nothing
+constexpr int kMaxGapPx = 2;        // columns missing inside a run
+
+bool fits(const cv::Mat &m, const cv::Size &size, int type)
+{
+  return m.size() == size && m.type() == type;
+}
+
+} // namespace
+
+double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
+                  const cv::Mat &canopy, const RowSegment &s, const GroundPlane &ground,
+                  const StereoGeometry &g)
+{
+  require_valid(g, "Finding a trunk", "find_trunk");
+  const cv::Size size = g.view_size;
+  if (!fits(left, size, CV_8UC1) || !fits(right, size, CV_8UC1) ||
+      !fits(vegetation, size, CV_8UC1) || !fits(canopy, size, CV_8UC1))
+    throw BadInput("The views or masks do not fit the stereo geometry: finding a trunk needs "
+                   "both rectified views in grey and 8-bit masks, all of the view's size.",
+                   "find_trunk: view " + std::to_string(size.width) + "x" +
+                       std::to_string(size.height));
+  constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
+  if (!(s.near_mm > 0) || !(s.hi_mm > s.lo_mm))
+    return kNone;
+  const double z0 = s.near_mm, z1 = s.near_mm + (s.hi_mm - s.lo_mm);
+  const double cx = g.cx[0];
+  const int u0 = std::max(kHalf, int(std::floor(cx + g.fx * s.lo_mm / z0)));
+  const int u1 = std::min(size.width - 1 - kHalf, int(std::ceil(cx + g.fx * s.hi_mm / z0)));
+  if (u1 - u0 < 2 * kHalf + 1)
+    return kNone;
+
+  // The crown's lowest row in its columns.
+  int bottom = -1;
+  for (int y = size.height - 1; y >= 0 && bottom < 0; --y) {
+    const uchar *m = canopy.ptr<uchar>(y);
+    for (int u = u0; u <= u1; ++u)
+      if (m[u]) {
+        bottom = y;
+        break;
+      }
+  }
+  if (bottom < 0)
+    return kNone;
+  // The ground under the crown's middle, at its middle depth.
+  double ground_row = size.height;
+  const double zm = 0.5 * (z0 + z1), xm = 0.5 * (s.lo_mm + s.hi_mm);
+  if (ground.found && std::abs(ground.normal[1]) > 0.5) {
+    const double y_mm = -(ground.normal[0] * xm + ground.normal[2] * zm + ground.d) / ground.normal[1];
+    ground_row = std::min(ground_row, g.cy + g.fy * y_mm / zm);
+  }
+  const int y0 = bottom + 2;
+  const int y1 = std::min(size.height, int(y0 + 2.0 / 3.0 * (ground_row - y0)));
+  const int rows = y1 - y0;
+  if (rows < kMinRows)
+    return kNone;
+
+  // Per column: the best ZNCC over the crown's disparities, and its share of bare pixels.
+  const int d_lo = int(std::floor(g.fx * g.baseline_mm / z1 + g.doffs()));
+  const int d_hi = int(std::ceil(g.fx * g.baseline_mm / z0 + g.doffs()));
+  const int nc = u1 - u0 + 1;
+  std::vector<double> best(std::size_t(nc), -1.0), best_d(std::size_t(nc), 0.0),
+      bare(std::size_t(nc), 0.0);
+  for (int u = u0; u <= u1; ++u) {
+    int n = 0;
+    for (int y = y0; y < y1; ++y)
+      n += vegetation.at<uchar>(y, u) == 0;
+    bare[std::size_t(u - u0)] = double(n) / rows;
+  }
+  // Column sums of the band (left), refreshed per disparity for the right and the products.
+  std::vector<double> sl(std::size_t(size.width), 0), sll(sl), sr(sl), srr(sl), slr(sl);
+  for (int y = y0; y < y1; ++y) {
+    const uchar *a = left.ptr<uchar>(y);
+    for (int u = u0 - kHalf; u <= u1 + kHalf; ++u) {
+      sl[std::size_t(u)] += a[u];
+      sll[std::size_t(u)] += double(a[u]) * a[u];
+    }
+  }
+  const double n = double(rows) * (2 * kHalf + 1);
+  for (int d = std::max(0, d_lo); d <= d_hi; ++d) {
+    if (u0 - kHalf - d < 0)
+      continue;
+    std::fill(sr.begin(), sr.end(), 0.0);
+    std::fill(srr.begin(), srr.end(), 0.0);
+    std::fill(slr.begin(), slr.end(), 0.0);
+    for (int y = y0; y < y1; ++y) {
+      const uchar *a = left.ptr<uchar>(y), *b = right.ptr<uchar>(y);
+      for (int u = u0 - kHalf; u <= u1 + kHalf; ++u) {
+        const double r = b[u - d];
+        sr[std::size_t(u)] += r;
+        srr[std::size_t(u)] += r * r;
+        slr[std::size_t(u)] += r * a[u];
+      }
+    }
+    for (int u = u0; u <= u1; ++u) {
+      double a = 0, aa = 0, b = 0, bb = 0, ab = 0;
+      for (int k = u - kHalf; k <= u + kHalf; ++k) {
+        a += sl[std::size_t(k)];
+        aa += sll[std::size_t(k)];
+        b += sr[std::size_t(k)];
+        bb += srr[std::size_t(k)];
+        ab += slr[std::size_t(k)];
+      }
+      const double va = n * aa - a * a, vb = n * bb - b * b;
+      if (va <= n || vb <= n) // flat: no match to tell
+        continue;
+      const double z = (n * ab - a * b) / std::sqrt(va * vb);
+      if (z > best[std::size_t(u - u0)]) {
+        best[std::size_t(u - u0)] = z;
+        best_d[std::size_t(u - u0)] = d;
+      }
+    }
+  }
+
+  // Runs of bare columns: the trunk fills the band's rows, the ground behind it seldom does.
+  struct Run {
+    int a, b;
+  };
+  std::vector<Run> runs;
+  for (int i = 0; i < nc; ++i) {
+    if (bare[std::size_t(i)] < kMinBare)
+      continue;
+    if (!runs.empty() && i - runs.back().b <= kMaxGapPx + 1)
+      runs.back().b = i;
+    else
+      runs.push_back({i, i});
+  }
+  const double seg_mm = s.hi_mm - s.lo_mm;
+  int pick = -1, second = 0;
+  double pick_z = 0;
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    const Run &r = runs[k];
+    const int len = r.b - r.a + 1;
+    // Most of it matches at the crown's depth (a bare patch of ground behind does not).
+    std::vector<double> ds;
+    for (int i = r.a; i <= r.b; ++i)
+      if (best[std::size_t(i)] >= kMinZncc)
+        ds.push_back(best_d[std::size_t(i)]);
+    if (2 * int(ds.size()) < len)
+      continue;
+    std::nth_element(ds.begin(), ds.begin() + std::ptrdiff_t(ds.size() / 2), ds.end());
+    const double disparity = ds[ds.size() / 2] - g.doffs();
+    if (disparity <= 0)
+      continue;
+    const double z = g.fx * g.baseline_mm / disparity;
+    const double width_mm = len * z / g.fx;
+    if (width_mm < kMinTrunkMm || width_mm > kMaxShare * seg_mm)
+      continue;
+    if (pick < 0 || len > runs[std::size_t(pick)].b - runs[std::size_t(pick)].a + 1) {
+      if (pick >= 0)
+        second = std::max(second, runs[std::size_t(pick)].b - runs[std::size_t(pick)].a + 1);
+      pick = int(k);
+      pick_z = z;
+    } else {
+      second = std::max(second, len);
+    }
+  }
+  if (pick < 0)
+    return kNone;
+  const Run &r = runs[std::size_t(pick)];
+  if (2 * second > r.b - r.a + 1)
+    return kNone;
+  const double u_mid = u0 + 0.5 * (r.a + r.b);
+  // The match sees the trunk's front; its axis stands a radius (half its width) behind.
+  const double z_axis = pick_z * (1 + 0.5 * (r.b - r.a + 1) / g.fx);
+  return (u_mid - cx) * z_axis / g.fx;
+}
+
+} // namespace treestereo
