@@ -98,21 +98,23 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   }
   const double n = double(rows) * (2 * kHalf + 1);
   for (int d = std::max(0, d_lo); d <= d_hi; ++d) {
-    if (u0 - kHalf - d < 0)
+    // Columns whose window the right view holds at this disparity.
+    const int ua = std::max(u0, d + kHalf);
+    if (ua > u1)
       continue;
     std::fill(sr.begin(), sr.end(), 0.0);
     std::fill(srr.begin(), srr.end(), 0.0);
     std::fill(slr.begin(), slr.end(), 0.0);
     for (int y = y0; y < y1; ++y) {
       const uchar *a = left.ptr<uchar>(y), *b = right.ptr<uchar>(y);
-      for (int u = u0 - kHalf; u <= u1 + kHalf; ++u) {
+      for (int u = ua - kHalf; u <= u1 + kHalf; ++u) {
         const double r = b[u - d];
         sr[std::size_t(u)] += r;
         srr[std::size_t(u)] += r * r;
         slr[std::size_t(u)] += r * a[u];
       }
     }
-    for (int u = u0; u <= u1; ++u) {
+    for (int u = ua; u <= u1; ++u) {
       double a = 0, aa = 0, b = 0, bb = 0, ab = 0;
       for (int k = u - kHalf; k <= u + kHalf; ++k) {
         a += sl[std::size_t(k)];

@@ -226,21 +226,22 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
                          const std::vector<StereoMatch> &seeds, const StereoGeometry &geometry,
                          const CanopyDepthParams &params);
 
-// Where the tree of `segment` stands: the X (mm, rectified-left frame) of the trunk seen below its
-// crown, NaN when none shows. A crown grown into its neighbour's hides part of itself; a pruned
-// crown stands about its trunk, so the trunk tells how far the hidden part reaches (TreeTracker).
-// - Where: the rows below the crown's lowest canopy pixel (`canopy`, its columns), down two
-//   thirds of the way to the ground under the crown (`ground`; the image's bottom when not found):
-//   lower down the ground itself nears the trunk's depth.
-// - What: columns whose strip of those rows matches the right view at a depth of the crown (from
-//   its front, segment.near_mm, to as deep behind it as it is long: ZNCC of a 5-column window
-//   of at least kTrunkZncc) and is not plant (`vegetation` zero in most of it). The ground behind
-//   lies deeper than the crown there, so it does not match at the crown's depth.
-// - Which: the widest such run of columns, between kTrunkMinMm and a third of the segment
-//   across; none when a second run holds more than half as many columns (two trunks, or a
-//   post: no telling which).
-// `left`, `right`: rectified grey views (CV_8UC1); `vegetation`, `canopy`: CV_8U masks of the
-// view. Throws BadInput when the images do not fit the geometry's view.
+// Where the tree of `segment` stands: the X (mm, rectified-left frame) of the trunk's axis seen
+// below its crown, NaN when none shows. A crown grown into its neighbour's hides part of itself;
+// a pruned crown stands about its trunk, so the trunk tells how far the hidden part reaches
+// (TreeTracker).
+// - Where: the rows below the crown's lowest pixel (`canopy`) in the segment's columns, two
+//   thirds of the way down to the ground under the crown (`ground`; the image's bottom when not
+//   found): lower down the ground itself nears the trunk's depth.
+// - What: runs of columns not plant in 90 % of those rows (`vegetation` zero) of which at least
+//   half match the right view at a depth of the crown: from its front (segment.near_mm) to as
+//   deep behind it as it is long, ZNCC >= 0.6 over a window of 5 columns. A patch of bare soil
+//   behind lies deeper than the crown and does not match there.
+// - Which: the widest run between 20 mm and a third of the segment across; none when a second
+//   one is more than half as wide (two trunks, or a post: no telling which). Its axis stands
+//   half its width behind the front the match saw.
+// `left`, `right`: rectified grey views (CV_8UC1); `vegetation`, `canopy`: CV_8UC1 masks of the
+// view. Throws BadInput when they do not fit the geometry's view, or the geometry is invalid.
 double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
                   const cv::Mat &canopy, const RowSegment &segment, const GroundPlane &ground,
                   const StereoGeometry &geometry);
