@@ -3,7 +3,8 @@
 # 640x480 JPEG at 2 m/s, seed 4, gaps 0.15-0.8 m, the canopies of trees 1 and 2 grown into each
 # other), against its truth.json: the travel from stereo alone (files carry no speed), one
 # complete tree record per tree that passed wholly through the view (the touching pair two
-# records), each at its tree's place with its height and width, and the row map's gaps.
+# records, each as wide as its crown), each at its tree's place with its height and width, and
+# the row map's gaps.
 set -uo pipefail
 measure=${1:?usage: test-driveby-fixture.sh TREESTEREO_MEASURE}
 src=${TREESTEREO_SOURCE_DIR:?TREESTEREO_SOURCE_DIR not set}
@@ -43,6 +44,7 @@ print(f"{len(complete)} complete records, {len(whole)} trees wholly in view: " +
       ", ".join(str(t["index"]) for t in sorted(whole, key=lambda t: t["x_m"])))
 assert len(complete) == len(whole), "one complete record per tree wholly in view"
 used = set()
+width_error = {}
 for t in sorted(whole, key=lambda t: t["x_m"]):
     centre = 0.5 * (t["start_m"] + t["end_m"])
     r = min(complete, key=lambda r: abs(r["position_m"] - centre))
@@ -55,9 +57,15 @@ for t in sorted(whole, key=lambda t: t["x_m"]):
     assert abs(dpos) <= 0.05 + 0.03 * abs(centre), f"tree {t['index']} placed {100 * dpos:+.1f} cm off"
     assert abs(dh) <= 0.05, f"tree {t['index']} height {100 * dh:+.1f} %"
     assert abs(dw) <= 0.10, f"tree {t['index']} width {100 * dw:+.1f} %"
+    width_error[r["id"]] = dw
 # The touching pair: two records that meet (their canopies overlap or nearly touch).
 pair = sorted((r for r in complete if r["id"] in used), key=lambda r: r["position_m"])
-assert any(abs(b["start_m"] - a["end_m"]) <= 0.1 for a, b in zip(pair, pair[1:])), "no two records meet: the touching pair is not split"
+meet = [(a, b) for a, b in zip(pair, pair[1:]) if abs(b["start_m"] - a["end_m"]) <= 0.1]
+assert meet, "no two records meet: the touching pair is not split"
+# Each crown of the pair reaches beyond the cut between them: as far from its trunk as on its
+# free side (a cut at the outline's dip read the first 6 % narrow).
+for r in meet[0]:
+    assert abs(width_error[r["id"]]) <= 0.03, f"record {r['id']} of the touching pair: width {100 * width_error[r['id']]:+.1f} %"
 # Row map: every gap of 10 cm and more between trees wholly in view holds an empty bin.
 cells = list(csv.DictReader(open(sys.argv[5])))
 bins = {}
