@@ -75,6 +75,9 @@ struct Sim {
   double valley_at = 0.5;
   // The measured tree's trunk shows below its crown (RowSegment::trunk_mm, the crown's middle).
   bool trunks = false;
+  // The segments of touching crowns end at the cut too, as the chain's do (else at their
+  // crowns' true ends).
+  bool segments_at_cut = false;
   // Stray points bridge the gap after this tree in the frames it is in view with the next one
   // entering (the next tree's canopy less than 300 mm in view): its segment runs on to the next
   // tree's (seen as one).
@@ -189,6 +192,11 @@ std::vector<SimFrame> simulate(const std::vector<TrueTree> &trees, Sim sim)
         segs.back().joined_hi = true;
         Vis w = v;
         w.joined_lo = true;
+        if (sim.segments_at_cut) {
+          const double cut = sim.valley_at * segs.back().b + (1 - sim.valley_at) * v.a;
+          segs.back().hi = std::min(segs.back().hi, cut);
+          w.lo = std::max(w.lo, cut);
+        }
         segs.push_back(w);
         continue;
       }
@@ -604,7 +612,7 @@ TEST(TreeTracker, TouchingCrownsCutAtTheirValleyAreTwoTrees)
 
 // The outline of touching crowns dips where the nearer one's limb is: the cut lies at the second
 // crown's start, 100 mm inside the first. A trunk seen below the first gives its hidden side:
-// the free side mirrored about it.
+// the free side mirrored about it, for its width and for its end and place along the row.
 TEST(TreeTracker, ACrownCutAtAValleyReachesAsFarFromItsTrunkAsItsFreeSide)
 {
   const std::vector<TrueTree> row = {{1000, 1750, 0.9, 2.0}, {1650, 2400, 1.0, 2.0},
@@ -620,11 +628,21 @@ TEST(TreeTracker, ACrownCutAtAValleyReachesAsFarFromItsTrunkAsItsFreeSide)
       sim.valley_from_mm = 300;
       sim.valley_at = 0;
       sim.trunks = trunks;
+      sim.segments_at_cut = true;
       TreeTracker tracker;
       const auto got = run(tracker, simulate(row, sim));
       ASSERT_EQ(got.size(), 3u);
       for (std::size_t i = 0; i < 3; ++i)
         ASSERT_TRUE(got[i].record.has_width) << i;
+      // Its end and place likewise: at the cut, 50 mm short of its centre without the trunk.
+      const TreeRecord &a = got[0].record;
+      if (trunks) {
+        EXPECT_NEAR(a.end_m, row[0].end_mm / 1000.0, 0.03);
+        EXPECT_NEAR(a.position_m, row[0].centre_m(), 0.015);
+      } else {
+        EXPECT_NEAR(a.end_m, row[1].start_mm / 1000.0, 0.015);
+        EXPECT_LT(a.position_m, row[0].centre_m() - 0.035);
+      }
       const double first = got[0].record.width_m - row[0].width_m();
       // The mirror doubles the free edge's error and the trunk's: as expect_row()'s.
       if (trunks)

@@ -114,22 +114,24 @@ double median_of(std::vector<double> v)
 // far from the trunk as the limb does: the limb mirrored, never inside the cut. The limb's error
 // counts twice in the width then, as the trunk's does.
 
-template <typename Edge>
-void mirror_hidden_side(const std::vector<Edge> &lefts, const std::vector<Edge> &rights,
-                        const std::vector<double> &trunks, double &lo, double &hi)
+// `lo_hidden`, `hi_hidden`: that side was only ever seen cut at a valley.
+void mirror_hidden_side(bool lo_hidden, bool hi_hidden, const std::vector<double> &trunks,
+                        double &lo, double &hi)
 {
-  const auto cut = [](const std::vector<Edge> &e) {
-    return std::all_of(e.begin(), e.end(), [](const Edge &x) { return x.at_valley; });
-  };
-  if (trunks.empty() || cut(lefts) == cut(rights))
+  if (trunks.empty() || lo_hidden == hi_hidden)
     return;
   const double t = median_of(trunks);
   if (!(t > lo && t < hi))
     return;
-  if (cut(rights))
+  if (hi_hidden)
     hi = std::max(hi, 2 * t - lo);
   else
     lo = std::min(lo, 2 * t - hi);
+}
+
+template <typename Edge> bool all_at_valley(const std::vector<Edge> &edges)
+{
+  return std::all_of(edges.begin(), edges.end(), [](const Edge &e) { return e.at_valley; });
 }
 
 // Overlap length of [a0, a1] and [b0, b1] (negative: the gap between them).
@@ -381,18 +383,22 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
       ++k.missed;
       continue;
     }
-    double lo = segs[obs[t].front()].lo, hi = segs[obs[t].front()].hi;
-    bool cut_lo = segs[obs[t].front()].cut_lo, cut_hi = segs[obs[t].front()].cut_hi;
-    double near = f.segments[obs[t].front()].near_mm;
+    const std::size_t first = obs[t].front();
+    double lo = segs[first].lo, hi = segs[first].hi;
+    bool cut_lo = segs[first].cut_lo, cut_hi = segs[first].cut_hi;
+    bool valley_lo = f.segments[first].joined_lo, valley_hi = f.segments[first].joined_hi;
+    double near = f.segments[first].near_mm;
     bool measured = false;
     for (std::size_t i : obs[t]) {
       if (segs[i].lo < lo) {
         lo = segs[i].lo;
         cut_lo = segs[i].cut_lo;
+        valley_lo = f.segments[i].joined_lo;
       }
       if (segs[i].hi > hi) {
         hi = segs[i].hi;
         cut_hi = segs[i].cut_hi;
+        valley_hi = f.segments[i].joined_hi;
       }
       near = std::min(near, f.segments[i].near_mm);
       measured = measured || int(i) == f.measured_segment;
@@ -408,10 +414,14 @@ std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
     k.min_lo_mm = std::min(k.min_lo_mm, lo);
     k.max_hi_mm = std::max(k.max_hi_mm, hi);
     k.near_mm = near;
-    if (!cut_lo)
+    if (!cut_lo) {
       push_capped(k.starts, lo);
-    if (!cut_hi)
+      k.start_free = k.start_free || !valley_lo;
+    }
+    if (!cut_hi) {
       push_capped(k.ends, hi);
+      k.end_free = k.end_free || !valley_hi;
+    }
     ++k.frames_seen;
     k.missed = 0;
     // The measurement counts when it is of this tree whole: mode Tree, a tree split over
@@ -546,6 +556,12 @@ std::vector<TreeRecord> TreeTracker::emit(std::vector<Track> &done)
     r.end_m = (r.end_seen ? median_of(k.ends) : k.max_hi_mm) * kMmToM;
     if (r.end_m < r.start_m) // a median pair of a tree seen at both ends in different frames
       std::swap(r.start_m, r.end_m);
+    if (!row && r.start_seen && r.end_seen) {
+      double lo = r.start_m / kMmToM, hi = r.end_m / kMmToM;
+      mirror_hidden_side(!k.start_free, !k.end_free, k.trunks, lo, hi);
+      r.start_m = lo * kMmToM;
+      r.end_m = hi * kMmToM;
+    }
     r.position_m = 0.5 * (r.start_m + r.end_m);
     r.frames_seen = k.frames_seen;
     r.height_frames = int(k.heights.size());
@@ -563,7 +579,7 @@ std::vector<TreeRecord> TreeTracker::emit(std::vector<Track> &done)
         // cluster may stand.
         const double depth_mm = (r.end_m - r.start_m) / kMmToM;
         double lo = axis_edge(k.lefts, depth_mm, -1), hi = axis_edge(k.rights, depth_mm, 1);
-        mirror_hidden_side(k.lefts, k.rights, k.trunks, lo, hi);
+        mirror_hidden_side(all_at_valley(k.lefts), all_at_valley(k.rights), k.trunks, lo, hi);
         r.width_m = (hi - lo) * kMmToM;
         r.width_frames = int(std::min(k.lefts.size(), k.rights.size()));
       }

@@ -55,7 +55,8 @@
 //    when no frame saw it free, and then as the median of its cuts. The cut lies inside the
 //    crown (the neighbour hides the rest; the outline dips where the nearer crown's limb is):
 //    with its trunk seen (RowSegment::trunk_mm, the median over the frames) and the other side
-//    free, that side is the free one mirrored about the trunk, never inside the cut.
+//    free, that side is the free one mirrored about the trunk, never inside the cut. So is
+//    start_m or end_m (mode Tree) when that end was only ever seen at a valley.
 //  - position_m is the canopy's centre along the row, (start_m + end_m) / 2, not the trunk's
 //    (seen in some frames only); on a symmetric crown the two agree.
 //  - confidence is the median over the fused frames, like every other fused value: the record
@@ -187,6 +188,7 @@ private:
     double min_lo_mm = 0, max_hi_mm = 0; // farthest seen over all frames
     double near_mm = 0;                  // front depth in the last frame it was seen
     std::vector<double> starts, ends;    // world extents of uncut sides
+    bool start_free = false, end_free = false; // one of them not cut at a valley either
     std::vector<double> heights, distances, thicknesses, confidences;
     // The metrics' extent edges, world x (mm), with the slopes of their rays; `at_valley` those
     // of sides cut at a valley.
