@@ -138,6 +138,11 @@ TEST(Trunk, NoneWhereNoTrunkCanBeTold)
   none = make_pair({Bar{400, 60, 2000}});
   none.segment.near_mm = 0;
   EXPECT_TRUE(std::isnan(trunk(none)));
+  // A segment of an absurd depth and extent: nothing to tell, and no pixel out of range.
+  none.segment.near_mm = 1e-9;
+  none.segment.lo_mm = -1e12;
+  none.segment.hi_mm = 1e12;
+  EXPECT_TRUE(std::isnan(trunk(none)));
 }
 
 TEST(Trunk, ErrorsAreTypedAndNameTheProblem)

@@ -26,6 +26,13 @@ bool fits(const cv::Mat &m, const cv::Size &size, int type)
   return m.size() == size && m.type() == type;
 }
 
+// A pixel coordinate (or disparity) computed in double, held within [lo, hi] before it becomes
+// an int: a segment of an absurd depth must not overflow the conversion.
+int clamped(double v, int lo, int hi)
+{
+  return v <= lo ? lo : v >= hi ? hi : int(v);
+}
+
 } // namespace
 
 double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
@@ -45,8 +52,8 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
     return kNone;
   const double z0 = s.near_mm, z1 = s.near_mm + (s.hi_mm - s.lo_mm);
   const double cx = g.cx[0];
-  const int u0 = std::max(kHalf, int(std::floor(cx + g.fx * s.lo_mm / z0)));
-  const int u1 = std::min(size.width - 1 - kHalf, int(std::ceil(cx + g.fx * s.hi_mm / z0)));
+  const int u0 = clamped(std::floor(cx + g.fx * s.lo_mm / z0), kHalf, size.width - 1 - kHalf);
+  const int u1 = clamped(std::ceil(cx + g.fx * s.hi_mm / z0), kHalf, size.width - 1 - kHalf);
   if (u1 - u0 < 2 * kHalf + 1)
     return kNone;
 
@@ -66,18 +73,19 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   double ground_row = size.height;
   const double zm = 0.5 * (z0 + z1), xm = 0.5 * (s.lo_mm + s.hi_mm);
   if (ground.found && std::abs(ground.normal[1]) > 0.5) {
-    const double y_mm = -(ground.normal[0] * xm + ground.normal[2] * zm + ground.d) / ground.normal[1];
+    const double y_mm =
+        -(ground.normal[0] * xm + ground.normal[2] * zm + ground.d) / ground.normal[1];
     ground_row = std::min(ground_row, g.cy + g.fy * y_mm / zm);
   }
   const int y0 = bottom + 2;
-  const int y1 = std::min(size.height, int(y0 + 2.0 / 3.0 * (ground_row - y0)));
+  const int y1 = clamped(y0 + 2.0 / 3.0 * (ground_row - y0), y0, size.height);
   const int rows = y1 - y0;
   if (rows < kMinRows)
     return kNone;
 
   // Per column: the best ZNCC over the crown's disparities, and its share of bare pixels.
-  const int d_lo = int(std::floor(g.fx * g.baseline_mm / z1 + g.doffs()));
-  const int d_hi = int(std::ceil(g.fx * g.baseline_mm / z0 + g.doffs()));
+  const int d_lo = clamped(std::floor(g.fx * g.baseline_mm / z1 + g.doffs()), 0, size.width);
+  const int d_hi = clamped(std::ceil(g.fx * g.baseline_mm / z0 + g.doffs()), 0, size.width);
   const int nc = u1 - u0 + 1;
   std::vector<double> best(std::size_t(nc), -1.0), best_d(std::size_t(nc), 0.0),
       bare(std::size_t(nc), 0.0);
@@ -97,7 +105,7 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
     }
   }
   const double n = double(rows) * (2 * kHalf + 1);
-  for (int d = std::max(0, d_lo); d <= d_hi; ++d) {
+  for (int d = d_lo; d <= d_hi; ++d) {
     // Columns whose window the right view holds at this disparity.
     const int ua = std::max(u0, d + kHalf);
     if (ua > u1)
