@@ -112,9 +112,8 @@ double median_of(std::vector<double> v)
 // neighbour's crown hides the rest. A pruned crown stands about its trunk, so with the trunk seen
 // (the median of the frames that saw it) and the other side a limb, the hidden side reaches as
 // far from the trunk as the limb does: the limb mirrored, never inside the cut. The limb's error
-// counts twice in the width then, as the trunk's does.
-
-// `lo_hidden`, `hi_hidden`: that side was only ever seen cut at a valley.
+// counts twice in the width then, as the trunk's does. `lo_hidden`, `hi_hidden`: that side was
+// only ever seen cut at a valley.
 void mirror_hidden_side(bool lo_hidden, bool hi_hidden, const std::vector<double> &trunks,
                         double &lo, double &hi)
 {
