@@ -2,6 +2,7 @@
 #include "treestereo/canopy.hpp"
 
 #include "treestereo/errors.hpp"
+#include "treestereo/stats.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -145,6 +146,7 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   // Runs of bare columns: the trunk fills the band's rows, the ground behind it seldom does.
   struct Run {
     int a, b;
+    int len() const { return b - a + 1; }
   };
   std::vector<Run> runs;
   for (int i = 0; i < nc; ++i) {
@@ -156,43 +158,39 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
       runs.push_back({i, i});
   }
   const double seg_mm = s.hi_mm - s.lo_mm;
-  int pick = -1, second = 0;
+  const Run *pick = nullptr;
+  int second = 0;
   double pick_z = 0;
-  for (std::size_t k = 0; k < runs.size(); ++k) {
-    const Run &r = runs[k];
-    const int len = r.b - r.a + 1;
+  for (const Run &r : runs) {
     // Most of it matches at the crown's depth (a bare patch of ground behind does not).
     std::vector<double> ds;
     for (int i = r.a; i <= r.b; ++i)
       if (best[std::size_t(i)] >= kMinZncc)
         ds.push_back(best_d[std::size_t(i)]);
-    if (2 * int(ds.size()) < len)
+    if (2 * int(ds.size()) < r.len())
       continue;
-    std::nth_element(ds.begin(), ds.begin() + std::ptrdiff_t(ds.size() / 2), ds.end());
-    const double disparity = ds[ds.size() / 2] - g.doffs();
+    const double disparity = median(ds) - g.doffs();
     if (disparity <= 0)
       continue;
     const double z = g.fx * g.baseline_mm / disparity;
-    const double width_mm = len * z / g.fx;
+    const double width_mm = r.len() * z / g.fx;
     if (width_mm < kMinTrunkMm || width_mm > kMaxShare * seg_mm)
       continue;
-    if (pick < 0 || len > runs[std::size_t(pick)].b - runs[std::size_t(pick)].a + 1) {
-      if (pick >= 0)
-        second = std::max(second, runs[std::size_t(pick)].b - runs[std::size_t(pick)].a + 1);
-      pick = int(k);
+    if (!pick || r.len() > pick->len()) {
+      if (pick)
+        second = std::max(second, pick->len());
+      pick = &r;
       pick_z = z;
     } else {
-      second = std::max(second, len);
+      second = std::max(second, r.len());
     }
   }
-  if (pick < 0)
+  if (!pick || 2 * second > pick->len())
     return kNone;
-  const Run &r = runs[std::size_t(pick)];
-  if (2 * second > r.b - r.a + 1)
-    return kNone;
+  const Run &r = *pick;
   const double u_mid = u0 + 0.5 * (r.a + r.b);
   // The match sees the trunk's front; its axis stands a radius (half its width) behind.
-  const double z_axis = pick_z * (1 + 0.5 * (r.b - r.a + 1) / g.fx);
+  const double z_axis = pick_z * (1 + 0.5 * r.len() / g.fx);
   return (u_mid - cx) * z_axis / g.fx;
 }
 
