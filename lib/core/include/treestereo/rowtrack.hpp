@@ -188,7 +188,7 @@ private:
     double min_lo_mm = 0, max_hi_mm = 0; // farthest seen over all frames
     double near_mm = 0;                  // front depth in the last frame it was seen
     std::vector<double> starts, ends;    // world extents of uncut sides
-    bool start_free = false, end_free = false; // one of them not cut at a valley either
+    bool start_free = false, end_free = false; // a start (end) seen not at a valley either
     std::vector<double> heights, distances, thicknesses, confidences;
     // The metrics' extent edges, world x (mm), with the slopes of their rays; `at_valley` those
     // of sides cut at a valley.
