@@ -491,7 +491,7 @@ TreeMetrics metrics_from_meta(const GstTreeStereoMetrics *m)
 
 void feed_row_map(RowMap &map, GstBuffer *buf, const StereoGeometry &geometry,
                   const GstTreeStereoCanopyMeta *canopy, const GstTreeStereoPointsMeta *pm,
-                  const GroundPlane &ground, double position_mm)
+                  const GroundPlane &ground, double position_mm, const cv::Vec3d &row_direction)
 {
   const MappedSilhouette sil(canopy ? &canopy->view : nullptr);
   cv::Mat mask = sil.get().mask;
@@ -499,7 +499,16 @@ void feed_row_map(RowMap &map, GstBuffer *buf, const StereoGeometry &geometry,
     mask = cv::Mat::zeros(geometry.view_size, CV_8U); // no canopy in view: all seen empty
   const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
   map.add_frame(mask, pixel_points_of(pm, mm, guint(geometry.view_size.width)), geometry, ground,
-                position_mm);
+                position_mm, row_direction);
+}
+
+cv::Vec3d row_direction_of(const GstTreeStereoMetrics &metrics)
+{
+  const cv::Vec3d d(metrics.row_direction[0], metrics.row_direction[1], metrics.row_direction[2]);
+  const double n = cv::norm(d);
+  if (!std::isfinite(n) || std::abs(n - 1) > 1e-6 || !(d[0] > 0.5))
+    return cv::Vec3d(1, 0, 0);
+  return d / n;
 }
 
 void post_element_message(GstElement *element, GstStructure *s)

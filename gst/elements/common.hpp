@@ -149,11 +149,16 @@ std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
                                         bool grid = true);
 /* Adds one frame of @buf to a row map (treemetrics' map, spraycontrol's): the canopy meta's
  * silhouette as the mask (all empty when it has none of the view's size: the view seen without
- * canopy), the points meta's points with their pixels (@pm may be NULL), @ground (must be found)
- * and the rig's position along the row (mm). lib's exceptions pass through. */
+ * canopy), the points meta's points with their pixels (@pm may be NULL), @ground (must be found),
+ * the rig's position along the row (mm) and the row's direction (row_direction_of()). lib's
+ * exceptions pass through. */
 void feed_row_map(RowMap &map, GstBuffer *buf, const StereoGeometry &geometry,
                   const GstTreeStereoCanopyMeta *canopy, const GstTreeStereoPointsMeta *pm,
-                  const GroundPlane &ground, double position_mm);
+                  const GroundPlane &ground, double position_mm, const cv::Vec3d &row_direction);
+
+/* The metrics' row direction (GstTreeStereoMetrics::row_direction) as RowMap and TreeTracker take
+ * it: (1, 0, 0) when unset (all 0) or not a unit vector within 60 degrees of x. */
+cv::Vec3d row_direction_of(const GstTreeStereoMetrics &metrics);
 
 /* lib's tree record -> the message's (@out is cleared first). */
 void record_to_gst(const TreeRecord &r, GstTreeStereoTreeRecord *out);

@@ -395,7 +395,8 @@ static GstFlowReturn gst_spray_control_transform_ip(GstBaseTransform *trans, Gst
     std::vector<SpraySlice> slices;
     if (canopy && p.ground.found && geometry.valid()) {
       treestereo::gst::feed_row_map(*p.map, buf, geometry, canopy, pm, p.ground,
-                                    position_m * 1000.0);
+                                    position_m * 1000.0,
+                                    treestereo::gst::row_direction_of(mm->metrics));
       slices = take_final_slices(*p.map, position_m * 1000.0, p.next_bin, p.ranges);
     }
     commands = p.planner->update(std::int64_t(running), position_m, slices);

@@ -206,7 +206,15 @@ struct Along {
   // The last ground plane stereodepth found: the rig is rigid, so a frame whose grass gave no
   // plane (a hedgerow's base hidden, a sparse frame) takes the last one.
   GroundPlane ground;
+  // The direction the rig drives in, from the stereo motions (none from the speed property:
+  // the x axis then).
+  RowDirection row_direction;
   std::unique_ptr<TreeTracker> tracker;
+  // The tracker's frames held until the row's direction is measured (at most kMaxHeldFrames):
+  // the first frames placed along the camera's x and the later ones along the measured
+  // direction would not agree, and a crown's width taken from an edge of each read 1-2 % wide
+  // on the orchard (7 mm apart at 2 m).
+  std::vector<TrackFrame> held;
   std::vector<TreeRecord> records; // every record posted, drawn on the row map's picture
   std::unique_ptr<RowMap> row_map;
   GstTreeStereoTimes last_times{GST_CLOCK_TIME_NONE, GST_CLOCK_TIME_NONE, GST_CLOCK_TIME_NONE};
@@ -288,6 +296,24 @@ static void post_records(GstTreeMetrics *self, const std::vector<TreeRecord> &re
   }
 }
 
+/* At most this many frames are held for the row's direction: 1.4 s at 7 frames/s, 350 mm at
+ * 0.25 m/s (RowDirection::kMinSpanMm is 250 mm). */
+static constexpr std::size_t kMaxHeldFrames = 10;
+
+/* Hands the held frames to the tracker along the row's direction as it is now. */
+static std::vector<TreeRecord> release_held(Along &a)
+{
+  std::vector<TreeRecord> out;
+  const cv::Vec3d d = a.row_direction.direction(a.ground);
+  for (TrackFrame &f : a.held) {
+    f.row_direction = d;
+    std::vector<TreeRecord> r = a.tracker->update(f);
+    out.insert(out.end(), r.begin(), r.end());
+  }
+  a.held.clear();
+  return out;
+}
+
 /* The records of the trees still in view: the stream ends (or jumps), none of them will be seen
  * leaving. */
 static void finish_trees(GstTreeMetrics *self)
@@ -297,7 +323,9 @@ static void finish_trees(GstTreeMetrics *self)
     return;
   std::vector<TreeRecord> left;
   treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
-    left = a.tracker->finish();
+    left = release_held(a);
+    std::vector<TreeRecord> rest = a.tracker->finish();
+    left.insert(left.end(), rest.begin(), rest.end());
     return true;
   });
   post_records(self, left, &a.last_times);
@@ -426,6 +454,7 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
         had_pts ? double(GST_CLOCK_DIFF(prev_pts, pts)) / double(GST_SECOND) : 0.0;
     if (step.found) {
       travel_mm = step.travel_mm;
+      a.row_direction.add(m.displacement_mm);
       source = GST_TREE_STEREO_TRAVEL_STEREO;
       if (dt_s > 0) {
         const double v = step.travel_mm / dt_s;
@@ -461,7 +490,10 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
       canopy->mode == GST_TREE_STEREO_CANOPY_ROW ? CanopyMode::Row : CanopyMode::Tree;
   if (s.trees) {
     if (a.tracker && a.tracker->params().mode != mode) {
-      out = a.tracker->finish(); // stereodepth's canopy mode changed: the tracks were another's
+      // stereodepth's canopy mode changed: the tracks were another's
+      out = release_held(a);
+      std::vector<TreeRecord> rest = a.tracker->finish();
+      out.insert(out.end(), rest.begin(), rest.end());
       a.tracker.reset();
     }
     if (!a.tracker) {
@@ -501,8 +533,12 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
       GST_LOG_OBJECT(self, "at %.3f m, segments along the row:%s", f.position_mm / 1000,
                      segs.c_str());
     }
-    std::vector<TreeRecord> r = a.tracker->update(f);
-    out.insert(out.end(), r.begin(), r.end());
+    a.held.push_back(std::move(f));
+    const bool measuring = s.speed <= 0 && s.travel;
+    if (!measuring || a.row_direction.measured() || a.held.size() >= kMaxHeldFrames) {
+      std::vector<TreeRecord> r = release_held(a);
+      out.insert(out.end(), r.begin(), r.end());
+    }
   }
   if (!s.row_map_location.empty() && a.ground.found) {
     if (!a.row_map) {
@@ -510,7 +546,8 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
       rp.bin_mm = s.row_map_bin * 1000.0;
       a.row_map = std::make_unique<RowMap>(rp);
     }
-    treestereo::gst::feed_row_map(*a.row_map, buf, geometry, canopy, pm, a.ground, a.position_mm);
+    treestereo::gst::feed_row_map(*a.row_map, buf, geometry, canopy, pm, a.ground, a.position_mm,
+                                  a.row_direction.direction(a.ground));
   }
   return out;
 }
@@ -604,10 +641,13 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
 
     const GstTreeStereoTravelSource source = travel.get();
     st->along.position_mm += travel_mm;
+    const cv::Vec3d dir = st->along.row_direction.direction(st->along.ground);
     for (GstTreeStereoMetrics *out : {&raw.m, &smoothed.m}) {
       out->travel_m = travel_mm * 1e-3;
       out->position_m = st->along.position_mm * 1e-3;
       out->travel_source = guint(source);
+      for (int i = 0; i < 3; i++)
+        out->row_direction[i] = dir[i];
     }
     records = follow_row(self, buf, s, geometry, canopy, pm, m);
     return true;

@@ -326,7 +326,8 @@ static void draw_map_strip(State *st, GstBuffer *metas, cv::Mat &image, int n_vi
   if (canopy && st->ground.found && geometry.valid())
     treestereo::gst::feed_row_map(*st->map, metas, geometry, canopy,
                                   gst_buffer_get_tree_stereo_points_meta(metas), st->ground,
-                                  position_m * 1000.0);
+                                  position_m * 1000.0,
+                                  treestereo::gst::row_direction_of(mt->metrics));
   const int view_w = image.cols / std::max(1, n_views);
   const int h = std::max(24, image.rows / 6);
   if (view_w < 16 || image.rows < 2 * h)

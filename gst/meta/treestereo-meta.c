@@ -1196,8 +1196,17 @@ get_travel (const GstStructure * s, GstTreeStereoMetrics * m)
               "travel-source"), &source))
     return FALSE;
   m->travel_source = source;
-  return gst_structure_get (s, "travel-m", G_TYPE_DOUBLE, &m->travel_m,
-      "position-m", G_TYPE_DOUBLE, &m->position_m, NULL);
+  if (!gst_structure_get (s, "travel-m", G_TYPE_DOUBLE, &m->travel_m,
+          "position-m", G_TYPE_DOUBLE, &m->position_m, NULL))
+    return FALSE;
+  /* optional: messages recorded before the row's direction was measured */
+  if (!gst_structure_get (s, "row-direction-x", G_TYPE_DOUBLE, &m->row_direction[0],
+          "row-direction-y", G_TYPE_DOUBLE, &m->row_direction[1],
+          "row-direction-z", G_TYPE_DOUBLE, &m->row_direction[2], NULL)) {
+    m->row_direction[0] = 1;
+    m->row_direction[1] = m->row_direction[2] = 0;
+  }
+  return TRUE;
 }
 
 GstStructure *
@@ -1215,7 +1224,10 @@ gst_tree_stereo_metrics_message_structure (const GstTreeStereoMetrics * metrics,
   /* the rig's travel is one per frame: not repeated under "smoothed-" */
   gst_structure_set (s, "travel-m", G_TYPE_DOUBLE, metrics->travel_m,
       "position-m", G_TYPE_DOUBLE, metrics->position_m,
-      "travel-source", G_TYPE_STRING, source ? source : "none", NULL);
+      "travel-source", G_TYPE_STRING, source ? source : "none",
+      "row-direction-x", G_TYPE_DOUBLE, metrics->row_direction[0],
+      "row-direction-y", G_TYPE_DOUBLE, metrics->row_direction[1],
+      "row-direction-z", G_TYPE_DOUBLE, metrics->row_direction[2], NULL);
   set_metrics (s, metrics, "");
   if (smoothed)
     set_metrics (s, smoothed, "smoothed-");
@@ -1239,6 +1251,7 @@ gst_tree_stereo_metrics_message_parse (const GstStructure * s, GstTreeStereoMetr
     smoothed->travel_m = metrics->travel_m;
     smoothed->position_m = metrics->position_m;
     smoothed->travel_source = metrics->travel_source;
+    memcpy (smoothed->row_direction, metrics->row_direction, sizeof metrics->row_direction);
   }
   return TRUE;
 }

@@ -249,7 +249,9 @@ void expect_no_tree_message(const Message &m)
                                          "running-time", "tree-present",
                                          "canopy-mode",  "smoothed-tree-present",
                                          "smoothed-canopy-mode", "travel-m",
-                                         "position-m",   "travel-source"};
+                                         "position-m",   "travel-source",
+                                         "row-direction-x", "row-direction-y",
+                                         "row-direction-z"};
   for (int i = 0; i < gst_structure_n_fields(m.s); i++) {
     const std::string f = gst_structure_nth_field_name(m.s, guint(i));
     fail_unless(allowed.count(f) == 1, "no-tree message has field %s", f.c_str());

@@ -253,6 +253,8 @@ struct FrameOut {
   guint64 frame = 0; // the renderer's frame number (truth meta)
   double travel_m = 0, position_m = 0;
   guint source = 0;
+  double row_direction[3] = {0, 0, 0};
+  double driving[3] = {0, 0, 0}; // the renderer's: R1 turns the left camera's x (its drive)
 };
 
 struct OrchardRun {
@@ -277,8 +279,15 @@ void handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
   const GstTreeStereoTruthMeta *tm = gst_buffer_get_tree_stereo_truth_meta(buf);
   const GstTreeStereoMetricsMeta *mm = gst_buffer_get_tree_stereo_metrics_meta(buf);
   fail_unless(tm != nullptr && mm != nullptr);
-  r.frames.push_back({tm->truth.frame, mm->metrics.travel_m, mm->metrics.position_m,
-                      mm->metrics.travel_source});
+  const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
+  fail_unless(gm != nullptr);
+  FrameOut f{tm->truth.frame, mm->metrics.travel_m, mm->metrics.position_m,
+             mm->metrics.travel_source};
+  for (int i = 0; i < 3; i++) {
+    f.row_direction[i] = mm->metrics.row_direction[i];
+    f.driving[i] = gm->R1[3 * i];
+  }
+  r.frames.push_back(f);
 }
 
 /* Blanks the pixels of buffer number `target` (from 0) on their way into treemetrics: its metas
@@ -449,6 +458,22 @@ void check_travel(const OrchardRun &r, int w, int h, int frames, double per_fram
               truth_pos, 100 * (pos - truth_pos) / truth_pos, 100 * worst);
   fail_unless(std::fabs(pos - truth_pos) < 0.03 * truth_pos, "%s: position %.4f m, truth %.4f m",
               what, pos, truth_pos);
+  // The row's direction: the x axis (in the ground plane) on the first frame, no motion measured
+  // yet; then the rig's driving direction in the rectified frame, nearer to it than the
+  // rectified x axis is (0.010 rad off).
+  const FrameOut &f0 = r.frames.front(), &last = r.frames.back();
+  fail_unless(f0.row_direction[0] > 0.9999, "first frame's row direction x %.5f",
+              f0.row_direction[0]);
+  double dot = 0, x_axis = 0;
+  for (int i = 0; i < 3; i++)
+    dot += last.row_direction[i] * last.driving[i];
+  x_axis = std::acos(std::min(1.0, last.driving[0]));
+  const double err = std::acos(std::min(1.0, dot));
+  std::printf("%s: row direction (%.5f, %.5f, %.5f), driving (%.5f, %.5f, %.5f): %.4f rad off "
+              "(the x axis %.4f)\n",
+              what, last.row_direction[0], last.row_direction[1], last.row_direction[2],
+              last.driving[0], last.driving[1], last.driving[2], err, x_axis);
+  fail_unless(err < 0.5 * x_axis, "%s: the row's direction is %.4f rad off", what, err);
 }
 
 } // namespace

@@ -52,15 +52,21 @@ struct View {
   std::vector<PixelPoint> points;
 };
 
-View cast(const StereoGeometry &g, const std::vector<Wall> &walls, double position_mm)
+// `walls` as cameras yawed `yaw_deg` about the vertical against the row (turned towards +x: the
+// row's direction in their frame is (cos, 0, sin)) see them: each pixel's ray, turned into the
+// row's frame, meets the wall's plane at the row depth w.z. 0: straight across the row.
+View cast(const StereoGeometry &g, const std::vector<Wall> &walls, double position_mm,
+          double yaw_deg = 0)
 {
+  const double c = std::cos(yaw_deg * CV_PI / 180), s = std::sin(yaw_deg * CV_PI / 180);
   View out;
   out.mask = cv::Mat::zeros(g.view_size, CV_8U);
   for (int v = 0; v < g.view_size.height; ++v)
     for (int u = 0; u < g.view_size.width; ++u) {
       const double tx = (u - g.cx[LEFT]) / g.fx, ty = (v - g.cy) / g.fy;
       for (const Wall &w : walls) { // nearest first is not needed: they do not overlap in x
-        const double X = tx * w.z, Y = ty * w.z, x = X + position_mm, h = kCameraHeight - Y;
+        const double Z = w.z / (c - tx * s), X = tx * Z, Y = ty * Z;
+        const double x = X * c + Z * s + position_mm, h = kCameraHeight - Y;
         if (x < w.x0 || x >= w.x1 || h < w.h0 || h >= w.h1) // half open, as the bins
           continue;
         out.mask.at<uchar>(v, u) = 255;
@@ -69,7 +75,7 @@ View cast(const StereoGeometry &g, const std::vector<Wall> &walls, double positi
           p.px = cv::Point2f(float(u), float(v));
           p.p.x = float(X);
           p.p.y = float(Y);
-          p.p.z = float(w.z);
+          p.p.z = float(Z);
           out.points.push_back(p);
         }
         break;
@@ -101,6 +107,28 @@ double true_fill(long bin, int band, double *distance_m)
     }
   *distance_m = 0;
   return 0;
+}
+
+// The cells of bins 10-74 (0.5 to 3.75 m: every bin some frame sees near the centre) against
+// true_fill(), their distances too when `distances`. Returns how many are present.
+int expect_constructed_cells(const RowMap &map, bool distances)
+{
+  int present = 0;
+  for (long b = 10; b < 75; ++b)
+    for (int k = 0; k < 4; ++k) {
+      SCOPED_TRACE("bin " + std::to_string(b) + " band " + std::to_string(k));
+      double d = 0;
+      const double fill = true_fill(b, k, &d);
+      const RowMapCell c = map.cell(b, k);
+      EXPECT_TRUE(c.seen);
+      EXPECT_NEAR(c.fill, fill, 0.03);
+      EXPECT_EQ(c.present, fill > 0);
+      if (fill > 0 && distances) {
+        EXPECT_NEAR(c.distance_m, d, 0.001);
+      }
+      present += c.present;
+    }
+  return present;
 }
 
 // The map of `walls` from frames every step_mm from 0 to to_mm.
@@ -150,29 +178,40 @@ TEST(RowMap, CellsMatchTheConstructedRow)
 {
   const RowMap map = build();
   ASSERT_FALSE(map.empty());
-  int checked = 0, present = 0;
-  for (long b = 10; b < 75; ++b) // 0.5 to 3.75 m: every bin some frame sees near the centre
-    for (int k = 0; k < 4; ++k) {
-      SCOPED_TRACE("bin " + std::to_string(b) + " band " + std::to_string(k));
-      double d = 0;
-      const double fill = true_fill(b, k, &d);
-      const RowMapCell c = map.cell(b, k);
-      ASSERT_TRUE(c.seen);
-      EXPECT_NEAR(c.fill, fill, 0.03);
-      EXPECT_EQ(c.present, fill > 0);
-      if (fill > 0) {
-        EXPECT_NEAR(c.distance_m, d, 0.001);
-        ++present;
-      }
-      ++checked;
-    }
-  EXPECT_EQ(checked, 65 * 4);
-  EXPECT_EQ(present, 12 * 4 + 12 * 2 + 10 * 4);
+  EXPECT_EQ(expect_constructed_cells(map, true), 12 * 4 + 12 * 2 + 10 * 4);
   // The 10 cm gap (bins 32 and 33, 1.60-1.70 m) is empty in every band.
   for (int k = 0; k < 4; ++k) {
     EXPECT_FALSE(map.cell(32, k).present);
     EXPECT_FALSE(map.cell(33, k).present);
   }
+}
+
+TEST(RowMap, CamerasYawedOnTheRigPlaceTheRowAlongItsDirection)
+{
+  // Yawed 5 degrees, the cameras' X reads the row about Z sin 5 degrees short (174 mm at 2 m);
+  // along the row's direction the cells are the straight cameras'.
+  const double deg = 5, c = std::cos(deg * CV_PI / 180), s = std::sin(deg * CV_PI / 180);
+  const StereoGeometry g = camera();
+  RowMap along, across;
+  for (double pos = 0; pos <= 4000; pos += 100) {
+    const View v = cast(g, kWalls, pos, deg);
+    along.add_frame(v.mask, v.points, g, level_ground(), pos, cv::Vec3d(c, 0, s));
+    across.add_frame(v.mask, v.points, g, level_ground(), pos);
+  }
+  // Turned cameras see the walls at a slant: their near face is not the straight cameras' depth.
+  EXPECT_EQ(expect_constructed_cells(along, false), 12 * 4 + 12 * 2 + 10 * 4);
+  // Read along the cameras' x the row comes about Z sin 5 degrees early: canopy A (1.0-1.6 m at
+  // 2 m) from 0.80 m, and the gap after it (1.6-1.7 m) where the map's gap bins hold canopy B
+  // (from 1.7 m at 2.2 m).
+  for (long b : {16L, 17L, 18L, 19L}) {
+    EXPECT_FALSE(along.cell(b, 1).present) << "bin " << b;
+    EXPECT_TRUE(across.cell(b, 1).present) << "bin " << b;
+  }
+  EXPECT_TRUE(across.cell(32, 1).present);
+  EXPECT_TRUE(across.cell(33, 1).present);
+  EXPECT_THROW(along.add_frame(cv::Mat::zeros(g.view_size, CV_8U), {}, g, level_ground(), 0,
+                               cv::Vec3d(0, 0, 1)),
+               BadInput);
 }
 
 TEST(RowMap, CanopyEdgesWithinTheBins)

@@ -336,6 +336,48 @@ void expect_row(const std::vector<Emitted> &got, const std::vector<SimFrame> &fr
   }
 }
 
+// `f` as cameras turned by `deg` about the vertical (towards +x: the row's direction in their
+// frame is (cos, 0, sin)) see it: every point (x, z) of the unturned frame at
+// (x cos - z sin, x sin + z cos), every ray of slope t at slope (t cos - sin) / (t sin + cos).
+// A segment's ends lie at the row's front (kNear), the metrics' edges at the extent depth
+// (kNear), a band's edges at its depth, a trunk on the crown's axis (half its length behind its
+// front).
+TrackFrame yawed(const TrackFrame &f, double deg)
+{
+  const double c = std::cos(deg * CV_PI / 180), s = std::sin(deg * CV_PI / 180);
+  const auto x_of = [&](double x, double z) { return x * c - z * s; };
+  const auto z_of = [&](double x, double z) { return x * s + z * c; };
+  const auto ray = [&](double t) { return (t * c - s) / (t * s + c); };
+  TrackFrame y = f;
+  y.row_direction = cv::Vec3d(c, 0, s);
+  y.left_slope = ray(f.left_slope);
+  y.right_slope = ray(f.right_slope);
+  for (RowSegment &g : y.segments) {
+    const RowSegment &o = g;
+    const double mid = 0.5 * (o.lo_mm + o.hi_mm), axis_z = o.near_mm + 0.5 * (o.hi_mm - o.lo_mm);
+    if (std::isfinite(o.trunk_mm))
+      g.trunk_mm = x_of(o.trunk_mm, axis_z);
+    g.near_mm = z_of(mid, o.near_mm);
+    g.lo_z_mm = z_of(o.lo_mm, kNear);
+    g.hi_z_mm = z_of(o.hi_mm, kNear);
+    g.lo_mm = x_of(o.lo_mm, kNear);
+    g.hi_mm = x_of(o.hi_mm, kNear);
+  }
+  TreeMetrics &m = y.metrics;
+  if (m.tree_present) {
+    m.extent_depth_m = kNear / 1000;
+    m.left_m = x_of(f.metrics.left_m * 1000, kNear) / 1000;
+    m.right_m = x_of(f.metrics.right_m * 1000, kNear) / 1000;
+    m.left_slope = ray(f.metrics.left_slope);
+    m.right_slope = ray(f.metrics.right_slope);
+    for (Band &b : m.bands) {
+      b.left_m = x_of(b.left_m * 1000, b.depth_m * 1000) / 1000;
+      b.right_m = x_of(b.right_m * 1000, b.depth_m * 1000) / 1000;
+    }
+  }
+  return y;
+}
+
 } // namespace
 
 TEST(TreeTracker, FiveTreesAtHalfMetrePerSecond)
@@ -354,6 +396,38 @@ TEST(TreeTracker, FiveTreesAtTwoMetresPerSecond)
   const auto frames = simulate(kRow, sim);
   TreeTracker tracker;
   expect_row(run(tracker, frames), frames);
+}
+
+// Cameras yawed 5 degrees on the rig against the direction it drives in: each frame's X is
+// turned. With the row's direction the records are where the trees are; with the camera's x
+// axis instead every place along the row is off by about Z sin 5 degrees (174 mm at 2 m).
+TEST(TreeTracker, CamerasYawedOnTheRigReadTheRowAlongItsDirection)
+{
+  Sim sim;
+  sim.speed_m_s = 1.0;
+  const auto frames = simulate(kRow, sim);
+  std::vector<SimFrame> turned = frames, unread = frames;
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    turned[f].frame = yawed(frames[f].frame, 5.0);
+    unread[f].frame = turned[f].frame;
+    unread[f].frame.row_direction = cv::Vec3d(1, 0, 0);
+  }
+  TreeTracker straight, along, across;
+  const auto want = run(straight, frames);
+  const auto got = run(along, turned);
+  expect_row(got, turned);
+  ASSERT_EQ(got.size(), want.size());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    SCOPED_TRACE("tree " + std::to_string(i));
+    // The edges' depths differ by up to 30 mm across a crown once turned; one extent depth
+    // places both: 30 mm x sin 5 degrees.
+    EXPECT_NEAR(got[i].record.position_m, want[i].record.position_m, 0.003);
+    EXPECT_NEAR(got[i].record.width_m, want[i].record.width_m, 0.006);
+  }
+  const auto off = run(across, unread);
+  ASSERT_EQ(off.size(), kRow.size());
+  for (std::size_t i = 0; i < off.size(); ++i)
+    EXPECT_LT(off[i].record.position_m - kRow[i].centre_m(), -0.15) << "tree " << i;
 }
 
 TEST(TreeTracker, ClippedFramesWouldMoveTheMedian)
@@ -941,6 +1015,12 @@ TEST(TreeTracker, RejectsBadInput)
   f.right_slope = kRightSlope;
   f.measured_segment = 0; // no segments
   EXPECT_THROW(t.update(f), BadInput);
+  f.measured_segment = -1;
+  for (const cv::Vec3d &d : {cv::Vec3d(0, 0, 1), cv::Vec3d(2, 0, 0), cv::Vec3d(-1, 0, 0),
+                             cv::Vec3d(std::nan(""), 0, 0)}) {
+    f.row_direction = d;
+    EXPECT_THROW(t.update(f), BadInput);
+  }
 }
 
 TEST(TreeTracker, ErrorsAreTypedAndNameTheProblem)

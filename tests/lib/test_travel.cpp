@@ -599,6 +599,82 @@ TEST(Odometer, AStandingRigKeepsItsKeyFrame)
   EXPECT_LT(std::abs(position), 1.0);
 }
 
+// Displacements along a row the cameras are yawed 5 degrees against (and tilted 0.5 degrees),
+// each with its own error of a few mm across the row: their sum's direction is the row's.
+TEST(RowDirection, TheSumOfTheDisplacementsGivesTheRowsDirection)
+{
+  const double yaw = 5 * CV_PI / 180, tilt = 0.5 * CV_PI / 180;
+  const cv::Vec3d truth(std::cos(yaw) * std::cos(tilt), std::sin(tilt), std::sin(yaw));
+  RowDirection dir;
+  EXPECT_FALSE(dir.measured());
+  EXPECT_EQ(dir.direction(), cv::Vec3d(1, 0, 0));
+  for (int k = 0; k < 40; ++k) {
+    // Driving back along the row for a while is the same direction.
+    const double travel = k < 30 ? 143 : -143;
+    const cv::Vec3d noise(0.3 * std::sin(1.3 * k), 1.5 * std::cos(2.1 * k), 2.0 * std::sin(0.7 * k));
+    dir.add(travel * truth + noise);
+    if (k == 0) {
+      EXPECT_FALSE(dir.measured()) << "one frame's 143 mm is under the span";
+      EXPECT_EQ(dir.direction(), cv::Vec3d(1, 0, 0));
+    }
+  }
+  dir.add(cv::Vec3d(std::nan(""), 0, 0)); // ignored
+  RowDirection standing; // a standing rig's tracks: noise of a few mm, ignored
+  for (int k = 0; k < 500; ++k)
+    standing.add(cv::Vec3d(3 * std::sin(0.37 * k), 3 * std::cos(1.1 * k), 3 * std::sin(2.3 * k)));
+  EXPECT_FALSE(standing.measured());
+  RowDirection along_z; // displacements along the optical axis: no row across the view
+  along_z.add(cv::Vec3d(10, 0, 500));
+  EXPECT_FALSE(along_z.measured());
+  EXPECT_EQ(along_z.direction(), cv::Vec3d(1, 0, 0));
+  ASSERT_TRUE(dir.measured());
+  const cv::Vec3d d = dir.direction();
+  EXPECT_NEAR(cv::norm(d), 1.0, 1e-12);
+  EXPECT_LT(std::acos(std::min(1.0, d.dot(truth))), 0.001); // radians: 2 mm at 2 m
+  // The ground plane is not used once measured; before the span, the x axis in the ground
+  // plane (what the travel is measured along).
+  GroundPlane tilted;
+  tilted.found = true;
+  tilted.normal = cv::normalize(cv::Vec3d(0.1, -1, 0.1));
+  tilted.d = 950;
+  EXPECT_EQ(dir.direction(tilted), d);
+  const cv::Vec3d x = RowDirection().direction(tilted);
+  EXPECT_NEAR(x.dot(tilted.normal), 0.0, 1e-12);
+  EXPECT_GT(x[0], 0.99);
+  dir.reset();
+  EXPECT_FALSE(dir.measured());
+  EXPECT_THROW(RowDirection(-1), BadSettings);
+  EXPECT_THROW(RowDirection(std::nan("")), BadSettings);
+}
+
+// The orchard's rig: rectification turns the cameras, so the rig drives along R1 x, not along
+// the rectified x axis (0.2 degrees of yaw, 0.5 of tilt). The motions of consecutive frames
+// give that direction.
+TEST(RowDirection, TheOrchardRigsDirectionFromItsMotions)
+{
+  RowDirection dir;
+  const StereoGeometry *g = nullptr;
+  for (double speed : {0.5, 2.0})
+    for (std::uint64_t k : {std::uint64_t(3), std::uint64_t(9)}) {
+      const Frame &prev = frame_of(kFull, speed, k - 1);
+      const Frame &cur = frame_of(kFull, speed, k, &g);
+      const Motion m = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                       cur.view[RIGHT], cur.vegetation, *g);
+      ASSERT_TRUE(m.found);
+      dir.add(m.displacement_mm);
+    }
+  ASSERT_TRUE(dir.measured());
+  const cv::Vec3d truth = cv::normalize(g->R1 * cv::Vec3d(1, 0, 0));
+  const cv::Vec3d d = dir.direction();
+  const double err = std::acos(std::min(1.0, d.dot(truth)));
+  const double x_axis = std::acos(truth[0]); // what the rectified x axis alone is off by
+  std::printf("row direction (%.5f, %.5f, %.5f), truth (%.5f, %.5f, %.5f): %.4f rad off (the x "
+              "axis %.4f)\n",
+              d[0], d[1], d[2], truth[0], truth[1], truth[2], err, x_axis);
+  EXPECT_GT(x_axis, 0.009);
+  EXPECT_LT(err, 0.3 * x_axis);
+}
+
 TEST(Odometer, BadParametersThrow)
 {
   OdometerParams p;

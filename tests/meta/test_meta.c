@@ -258,6 +258,9 @@ fill_metrics (GstTreeStereoMetrics * m, gdouble k)
   m->travel_m = 0.1425;
   m->position_m = 3.5;
   m->travel_source = GST_TREE_STEREO_TRAVEL_STEREO;
+  m->row_direction[0] = 0.9962;
+  m->row_direction[1] = 0.0087;
+  m->row_direction[2] = 0.0868;
   gst_tree_stereo_metrics_set_n_bands (m, 4);
   for (guint i = 0; i < 4; i++) {
     m->bands[i].present = i != 2;
@@ -292,6 +295,8 @@ assert_metrics_equal (const GstTreeStereoMetrics * a, const GstTreeStereoMetrics
   fail_unless_equals_float (a->travel_m, b->travel_m);
   fail_unless_equals_float (a->position_m, b->position_m);
   fail_unless_equals_int (a->travel_source, b->travel_source);
+  for (int i = 0; i < 3; i++)
+    fail_unless_equals_float (a->row_direction[i], b->row_direction[i]);
   fail_unless_equals_int (a->n_bands, b->n_bands);
   for (guint i = 0; i < a->n_bands; i++)
     fail_unless_equals_float (a->bands[i].fill, b->bands[i].fill);
@@ -401,6 +406,15 @@ GST_START_TEST (test_metrics_message_round_trip)
     c = gst_structure_copy (s);
     gst_structure_remove_field (c, "position-m");
     fail_if (gst_tree_stereo_metrics_message_parse (c, &r2, NULL, NULL));
+    gst_structure_free (c);
+    /* the row's direction is optional (older recordings): the x axis without it */
+    c = gst_structure_copy (s);
+    gst_structure_remove_fields (c, "row-direction-x", "row-direction-y", "row-direction-z",
+        NULL);
+    fail_unless (gst_tree_stereo_metrics_message_parse (c, &r2, NULL, NULL));
+    fail_unless_equals_float (r2.row_direction[0], 1.0);
+    fail_unless_equals_float (r2.row_direction[1], 0.0);
+    fail_unless_equals_float (r2.row_direction[2], 0.0);
     gst_structure_free (c);
   }
   gst_structure_free (s);

@@ -218,7 +218,8 @@ RowMapCell RowMap::cell(long bin, int band) const
 }
 
 void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &points,
-                       const StereoGeometry &g, const GroundPlane &ground, double position_mm)
+                       const StereoGeometry &g, const GroundPlane &ground, double position_mm,
+                       const cv::Vec3d &row_direction)
 {
   require_valid(g, "the row map", "RowMap::add_frame");
   if (mask.type() != CV_8U || mask.size() != g.view_size)
@@ -228,6 +229,11 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     throw BadInput("row map: a ground plane is needed (select_canopy's or rig_ground())");
   if (!std::isfinite(position_mm))
     throw BadInput("row map: position_mm must be finite");
+  const cv::Vec3d &dir = row_direction;
+  if (!std::isfinite(dir[0]) || !std::isfinite(dir[1]) || !std::isfinite(dir[2]) ||
+      std::abs(cv::norm(dir) - 1) > 1e-6 || !(dir[0] > 0.5))
+    throw BadInput("row map: the row's direction must be a unit vector within 60 degrees of the "
+                   "camera's x axis (RowDirection::direction())");
 
   const int W = g.view_size.width, H = g.view_size.height;
   const double fx = g.fx, fy = g.fy > 0 ? g.fy : g.fx, cx = g.cx[LEFT], cy = g.cy;
@@ -241,7 +247,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
 
   // The canopy's points and the depth of each strip of columns.
   struct Pt {
-    double x, z, h;
+    double x, z, h; // x: along the row (along_row())
     int u, v;
   };
   std::vector<Pt> pts;
@@ -253,7 +259,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     if (u < 0 || v < 0 || u >= W || v >= H || !on_mask_or_beside(mask, u, v))
       continue;
     const cv::Point3d P(q.p.x, q.p.y, q.p.z);
-    pts.push_back({P.x, P.z, ground.height_of(P), u, v});
+    pts.push_back({along_row(cv::Vec3d(P), dir), P.z, ground.height_of(P), u, v});
   }
   if (pts.empty())
     return; // no depth: where the canopy-free view lies along the row is unknown
@@ -332,8 +338,15 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
 
   // Every pixel placed on the canopy's surface: counts per (bin, band).
   const double bin = params_.bin_mm;
-  const double view_lo = (-0.5 - cx) / fx * col_z.front() + position_mm;
-  const double view_hi = (W - 0.5 - cx) / fx * col_z.back() + position_mm;
+  // The view's edges along the row: their rays at the outer columns' depths, the inner of the
+  // top and bottom rows (the row's direction may lean across the view's rows).
+  const auto edge_at = [&](double u, double z, bool low) {
+    const double a = along_row(cv::Vec3d((u - cx) / fx * z, (-0.5 - cy) / fy * z, z), dir);
+    const double b = along_row(cv::Vec3d((u - cx) / fx * z, (H - 0.5 - cy) / fy * z, z), dir);
+    return (low ? std::max(a, b) : std::min(a, b)) + position_mm;
+  };
+  const double view_lo = edge_at(-0.5, col_z.front(), true);
+  const double view_hi = edge_at(W - 0.5, col_z.back(), false);
   const long b0 = long(std::floor(view_lo / bin)), b1 = long(std::floor(view_hi / bin));
   const long nbins = b1 - b0 + 1;
   if (nbins <= 0 || nbins > 1000000)
@@ -349,12 +362,12 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   // depth, (z / z_strip)^2.
   // The cell of pixel row v seen in column u at depth z (-1: none), and its world x.
   auto cell_of = [&](int u, int v, double z, double &wx) {
-    const double X = (u - cx) / fx * z;
-    wx = X + position_mm;
+    const cv::Point3d P((u - cx) / fx * z, (v - cy) / fy * z, z);
+    wx = along_row(cv::Vec3d(P), dir) + position_mm;
     const long b = long(std::floor(wx / bin)) - b0;
     if (b < 0 || b >= nbins)
       return -1L;
-    const int k = band_of(ground.height_of(cv::Point3d(X, (v - cy) / fy * z, z)));
+    const int k = band_of(ground.height_of(P));
     return k < 0 ? -1L : b * nb + k;
   };
   for (int u = 0; u < W; ++u) {
@@ -423,7 +436,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     const double lo = double(b + b0) * bin, hi = lo + bin;
     if (lo < view_lo || hi > view_hi)
       continue;
-    const double offset = std::abs(0.5 * (lo + hi) - position_mm) / row_z;
+    const double offset = std::abs(0.5 * (lo + hi) - (position_mm + row_z * dir[2])) / row_z;
     auto it = bins_.find(b + b0);
     if (it != bins_.end() && !(offset < it->second.centre_offset))
       continue;

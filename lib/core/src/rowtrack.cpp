@@ -57,6 +57,55 @@ void check_frame(const TrackFrame &f)
                          " lo_clear_mm=" + std::to_string(s.lo_clear_mm) +
                          " hi_clear_mm=" + std::to_string(s.hi_clear_mm) +
                          " trunk_mm=" + std::to_string(s.trunk_mm));
+  const cv::Vec3d &d = f.row_direction;
+  if (!std::isfinite(d[0]) || !std::isfinite(d[1]) || !std::isfinite(d[2]) ||
+      std::abs(cv::norm(d) - 1) > 1e-6 || !(d[0] > 0.5))
+    throw BadInput("The row's direction in the frame cannot be used: the tree tracker needs a "
+                   "unit vector within 60 degrees of the camera's x axis "
+                   "(RowDirection::direction() gives it).",
+                   "TrackFrame::row_direction = (" + std::to_string(d[0]) + ", " +
+                       std::to_string(d[1]) + ", " + std::to_string(d[2]) + ")");
+}
+
+// The frame with its X values placed along the row (TrackFrame::row_direction).
+TrackFrame along_the_row(const TrackFrame &in)
+{
+  const cv::Vec3d &d = in.row_direction;
+  if (d == cv::Vec3d(1, 0, 0))
+    return in;
+  TrackFrame f = in;
+  const auto at = [&d](double x_mm, double z_mm) { return x_mm * d[0] + z_mm * d[2]; };
+  const auto ray = [&d](double slope) { return slope * d[0] + d[2]; };
+  f.left_slope = ray(in.left_slope);
+  f.right_slope = ray(in.right_slope);
+  f.left_offset_mm = in.left_offset_mm * d[0];
+  for (RowSegment &s : f.segments) {
+    // The trunk's axis: half the crown's length behind its front (a crown about as deep as it is
+    // long along the row).
+    if (std::isfinite(s.trunk_mm))
+      s.trunk_mm = at(s.trunk_mm, s.near_mm + 0.5 * (s.hi_mm - s.lo_mm));
+    s.lo_mm = at(s.lo_mm, s.lo_z_mm > 0 ? s.lo_z_mm : s.near_mm);
+    s.hi_mm = at(s.hi_mm, s.hi_z_mm > 0 ? s.hi_z_mm : s.near_mm);
+    s.lo_clear_mm *= d[0]; // a distance along x at one depth (NaN stays NaN)
+    s.hi_clear_mm *= d[0];
+  }
+  TreeMetrics &m = f.metrics;
+  if (m.tree_present) {
+    const double z_mm = (m.extent_depth_m > 0 ? m.extent_depth_m : m.distance_m) / kMmToM;
+    m.left_m = at(m.left_m / kMmToM, z_mm) * kMmToM;
+    m.right_m = at(m.right_m / kMmToM, z_mm) * kMmToM;
+    m.left_slope = ray(m.left_slope);
+    m.right_slope = ray(m.right_slope);
+    for (Band &b : m.bands) {
+      if (!b.present)
+        continue;
+      const double zb_mm = b.depth_m > 0 ? b.depth_m / kMmToM : z_mm;
+      b.left_m = at(b.left_m / kMmToM, zb_mm) * kMmToM;
+      b.right_m = at(b.right_m / kMmToM, zb_mm) * kMmToM;
+      b.width_m = b.right_m - b.left_m;
+    }
+  }
+  return f;
 }
 
 // A track keeps at most this many samples of each figure (the latest): a tree in view for longer
@@ -231,9 +280,10 @@ std::pair<double, double> TreeTracker::robust_ends(const Track &k, double lo, do
   return e;
 }
 
-std::vector<TreeRecord> TreeTracker::update(const TrackFrame &f)
+std::vector<TreeRecord> TreeTracker::update(const TrackFrame &frame)
 {
-  check_frame(f);
+  check_frame(frame);
+  const TrackFrame f = along_the_row(frame);
   const double pos = f.position_mm;
   if (has_position_ && std::abs(pos - last_position_mm_) > 0.5)
     direction_ = pos > last_position_mm_ ? 1 : -1;

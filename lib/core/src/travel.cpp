@@ -684,13 +684,7 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
                        std::to_string(left.channels()) + " channels");
 
   Motion out;
-  cv::Vec3d along(1, 0, 0);
-  if (ground.found) {
-    const cv::Vec3d n = cv::normalize(ground.normal);
-    const cv::Vec3d a = along - along.dot(n) * n;
-    if (cv::norm(a) > 0.5) // the plane is not (nearly) across the x axis
-      along = cv::normalize(a);
-  }
+  const cv::Vec3d along = in_ground_plane(cv::Vec3d(1, 0, 0), ground);
   out.along = along;
 
   // Candidates: valid points in front of the rig whose right pixel is inside the view.
@@ -935,6 +929,45 @@ OdometryStep Odometer::add(const cv::Mat &left, const cv::Mat &right,
   if (!out.found)
     last_step_mm_ = 0;
   return out;
+}
+
+cv::Vec3d in_ground_plane(const cv::Vec3d &v, const GroundPlane &ground)
+{
+  const double len = cv::norm(v);
+  if (!(len > 0) || !std::isfinite(len))
+    return cv::Vec3d(1, 0, 0);
+  const cv::Vec3d u = v / len;
+  if (!ground.found || !(cv::norm(ground.normal) > 0))
+    return u;
+  const cv::Vec3d n = cv::normalize(ground.normal);
+  const cv::Vec3d a = u - u.dot(n) * n;
+  return cv::norm(a) > 0.5 ? cv::normalize(a) : u; // the plane is not (nearly) across v
+}
+
+RowDirection::RowDirection(double min_span_mm) : min_span_mm_(min_span_mm)
+{
+  if (!(min_span_mm >= 0) || !std::isfinite(min_span_mm))
+    throw BadSettings("The row direction's span must be a finite length of 0 mm or more.",
+                      "RowDirection: min_span_mm = " + std::to_string(min_span_mm));
+}
+
+void RowDirection::add(const cv::Vec3d &d)
+{
+  if (!std::isfinite(d[0]) || !std::isfinite(d[1]) || !std::isfinite(d[2]) ||
+      cv::norm(d) < kMinStepMm)
+    return;
+  sum_ += d[0] < 0 ? -d : d;
+}
+
+bool RowDirection::measured() const
+{
+  const double n = cv::norm(sum_);
+  return n >= min_span_mm_ && n > 0 && sum_[0] > 0.5 * n;
+}
+
+cv::Vec3d RowDirection::direction(const GroundPlane &ground) const
+{
+  return measured() ? cv::normalize(sum_) : in_ground_plane(cv::Vec3d(1, 0, 0), ground);
 }
 
 } // namespace treestereo

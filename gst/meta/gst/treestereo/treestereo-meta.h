@@ -487,6 +487,11 @@ typedef enum {
  * @position_m: the rig's position along the row since the start of the stream (m): the sum of
  *   the travels
  * @travel_source: #GstTreeStereoTravelSource of @travel_m
+ * @row_direction: the direction the rig drives in, in the rectified-left camera frame (unit, x
+ *   component positive): the mean of its measured motions. A point's place along the row is
+ *   @position_m plus its projection on it (m). (1, 0, 0) before the motion is known, and when
+ *   the travel comes from the speed property; all 0 in a meta made without it (read as
+ *   (1, 0, 0)).
  */
 typedef struct {
   gboolean tree_present;
@@ -508,6 +513,7 @@ typedef struct {
   gdouble travel_m;
   gdouble position_m;
   guint travel_source; /* GstTreeStereoTravelSource */
+  gdouble row_direction[3];
 } GstTreeStereoMetrics;
 
 /* Deep copy (bands too) of @src into @dest; @dest is cleared first. */

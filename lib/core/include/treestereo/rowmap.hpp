@@ -27,8 +27,9 @@
 // circle of that size), its depth from the centroid's to that much deeper; a fit that comes
 // nearer towards the limb is taken as flat, and a limb at the image's edge has no arc. Without
 // it the thin caps of crowns just above a band's edge were missed (docs/results.md, "Travel on
-// the keypoints, and the crown's limb in the row map"). Its world x is X + position, its height
-// the ground plane's height of the 3D point. A cell (bin, band) of that frame:
+// the keypoints, and the crown's limb in the row map"). Its world x is the position plus its
+// place along the row (along_row()), its height the ground plane's height of the 3D point. A
+// cell (bin, band) of that frame:
 //  - fill: the share of the cell's pixels (those the view has of it) that are canopy;
 //  - present: fill >= min_fill;
 //  - lo_m / hi_m: the world x of its leftmost and rightmost canopy pixel columns;
@@ -43,6 +44,7 @@
 
 #include "treestereo/canopy.hpp"
 #include "treestereo/rowtrack.hpp"
+#include "treestereo/travel.hpp"
 #include "treestereo/types.hpp"
 
 #include <opencv2/core.hpp>
@@ -107,9 +109,12 @@ public:
 
   // Adds one frame. `canopy_mask`: CV_8U of the view size, non-zero = canopy (the left
   // rectified view); `points`: the canopy's 3D points (invalid ones and those off the mask are
-  // ignored); `ground`: must be found. Throws std::runtime_error on inconsistent input.
+  // ignored); `ground`: must be found; `row_direction`: the row's direction in the rectified-left
+  // frame (RowDirection::direction(); a point's world x is position_mm + along_row()). Throws
+  // std::runtime_error on inconsistent input.
   void add_frame(const cv::Mat &canopy_mask, const std::vector<PixelPoint> &points,
-                 const StereoGeometry &geometry, const GroundPlane &ground, double position_mm);
+                 const StereoGeometry &geometry, const GroundPlane &ground, double position_mm,
+                 const cv::Vec3d &row_direction = cv::Vec3d(1, 0, 0));
 
   const RowMapParams &params() const { return params_; }
   const std::vector<double> &band_edges_mm() const { return edges_; }

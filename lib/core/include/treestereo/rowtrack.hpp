@@ -2,10 +2,11 @@
 // the tree record), built from the per-frame segments of select_canopy() and the tree in
 // front's TreeMetrics.
 //
-// World coordinate along the row: the rig's position since the start (travel) plus the camera
-// x of a point, as the renderer's row_trees() has it (mm internally, m in the record). The rig
-// may drive either way; the direction is taken from the change of position (TrackerParams::
-// forward until it moves).
+// World coordinate along the row: the rig's position since the start (travel) plus a point's
+// place along the row in the rectified-left frame, its projection on the row's direction
+// (TrackFrame::row_direction; travel.hpp's RowDirection), as the renderer's row_trees() has it
+// (mm internally, m in the record). The rig may drive either way; the direction of travel is
+// taken from the change of position (TrackerParams::forward until it moves).
 //
 // Per frame (TrackFrame): the position, the slopes x/z of the image's left and right edge rays
 // (view_slopes() from the rectified geometry), the near row's segments and, when a tree was
@@ -122,6 +123,13 @@ struct TrackFrame {
   // of the segment they describe (-1: none).
   TreeMetrics metrics;
   int measured_segment = -1;
+  // The row's direction in the rectified-left frame (unit, x component above 0.5:
+  // RowDirection::direction()). Every X above (the segments' ends and trunks, the metrics' edges
+  // and bands, the view's edges) is placed along the row by its projection on it at its own
+  // depth: a point (X, Z) at X dx + Z dz, a ray of slope t at (t dx + dz) per unit of depth. Y is
+  // not known for them and is taken as the camera's height (a crown's side extremes lie near the
+  // middle of its height; the camera is set there). (1, 0, 0): X itself.
+  cv::Vec3d row_direction{1, 0, 0};
 };
 
 // The edges of the view both rectified cameras see, in the left camera's frame: on the right

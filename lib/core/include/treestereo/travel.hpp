@@ -210,4 +210,54 @@ private:
   bool key_is_prev_ = true;
 };
 
+// ---- The row's direction ----
+//
+// The direction the rig drives in, in the rectified-left frame (unit, x component positive:
+// driving either way along a row is one direction). The rectified x axis is the baseline's
+// direction, not the driving direction: rectification turns both cameras, and the cameras sit on
+// the rig at a yaw and roll of their own. A point's place along the row is its projection on this
+// direction (along_row()). Its X alone is off by Z sin(yaw) + Y sin(roll): 7 mm at 2 m on the
+// renderer's rig (docs/results.md, "The remaining height errors, and the row's direction from
+// the motion"), 17 cm at 2 m for cameras yawed 5 degrees on the tractor.
+//
+// Estimated as the direction of the sum of the rig's displacements measured so far
+// (Motion::displacement_mm, each turned to a positive x first). On a straight row each frame's
+// own error (about 0.002 in the direction's z component per 143 mm frame on the drive-by)
+// averages out, and so do the rig's ups and downs. A turning drive gets the mean direction. Not
+// projected on the ground plane: the plane fitted to each frame's grass pitches by up to half a
+// degree from frame to frame (docs/results.md, "The top band: neither the ground nor a rounder
+// limb"), which would tilt the direction more than the displacements' own error does.
+class RowDirection {
+public:
+  // The displacements must add up to min_span_mm before they stand for the direction.
+  explicit RowDirection(double min_span_mm = kMinSpanMm);
+  static constexpr double kMinSpanMm = 250;
+
+  // Adds one measured displacement (mm, rectified-left frame). Not finite, or shorter than
+  // kMinStepMm (a standing rig's tracks: their noise points anywhere and, turned to a positive
+  // x, would add up along x): ignored.
+  void add(const cv::Vec3d &displacement_mm);
+  static constexpr double kMinStepMm = 10;
+  // The unit direction. Before min_span_mm of displacements, or when they point more than 60
+  // degrees off the x axis (cameras looking along the row, not across it): the x axis (in the
+  // ground plane when it is found), which estimate_motion() measures the travel along. The ground
+  // is not used otherwise.
+  cv::Vec3d direction(const GroundPlane &ground = GroundPlane()) const;
+  // The displacements add up to min_span_mm, within 60 degrees of the x axis.
+  bool measured() const;
+  void reset() { sum_ = cv::Vec3d(0, 0, 0); }
+
+private:
+  double min_span_mm_;
+  cv::Vec3d sum_{0, 0, 0};
+};
+
+// `v` in the ground plane (its component along the normal removed) and normalised; `v` itself,
+// normalised, when there is no ground or `v` stands (nearly) across it.
+cv::Vec3d in_ground_plane(const cv::Vec3d &v, const GroundPlane &ground);
+
+// The place along the row of point `p` (rectified-left frame, mm): its projection on the row's
+// unit direction `d` (RowDirection::direction()). d = (1, 0, 0) gives p's X.
+inline double along_row(const cv::Vec3d &p, const cv::Vec3d &d) { return p.dot(d); }
+
 } // namespace treestereo
