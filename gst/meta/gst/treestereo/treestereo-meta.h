@@ -489,9 +489,9 @@ typedef enum {
  * @travel_source: #GstTreeStereoTravelSource of @travel_m
  * @row_direction: the direction the rig drives in, in the rectified-left camera frame (unit, x
  *   component positive): the mean of its measured motions. A point's place along the row is
- *   @position_m plus its projection on it (m). (1, 0, 0) before the motion is known, and when
- *   the travel comes from the speed property; all 0 in a meta made without it (read as
- *   (1, 0, 0)).
+ *   @position_m plus its projection on it (m). The camera's x axis in the ground plane before
+ *   the motion is known, and when the travel comes from the speed property; all 0 in a meta made
+ *   without it (read as (1, 0, 0)).
  */
 typedef struct {
   gboolean tree_present;
