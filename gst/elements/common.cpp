@@ -505,10 +505,7 @@ void feed_row_map(RowMap &map, GstBuffer *buf, const StereoGeometry &geometry,
 cv::Vec3d row_direction_of(const GstTreeStereoMetrics &metrics)
 {
   const cv::Vec3d d(metrics.row_direction[0], metrics.row_direction[1], metrics.row_direction[2]);
-  const double n = cv::norm(d);
-  if (!std::isfinite(n) || std::abs(n - 1) > 1e-6 || !(d[0] > 0.5))
-    return cv::Vec3d(1, 0, 0);
-  return d / n;
+  return is_row_direction(d) ? d : cv::Vec3d(1, 0, 0);
 }
 
 void post_element_message(GstElement *element, GstStructure *s)

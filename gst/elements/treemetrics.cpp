@@ -210,11 +210,12 @@ struct Along {
   // the x axis then).
   RowDirection row_direction;
   std::unique_ptr<TreeTracker> tracker;
-  // The tracker's frames held until the row's direction is measured (at most kMaxHeldFrames):
-  // the first frames placed along the camera's x and the later ones along the measured
-  // direction would not agree, and a crown's width taken from an edge of each read 1-2 % wide
-  // on the orchard (7 mm apart at 2 m).
+  // The tracker's first frames, held until the row's direction is measured (at most
+  // kMaxHeldFrames; once released, no frame is held again): the first frames placed along the
+  // camera's x and the later ones along the measured direction would not agree, and a crown's
+  // width taken from an edge of each read 1-2 % wide on the orchard (7 mm apart at 2 m).
   std::vector<TrackFrame> held;
+  bool holding = true;
   std::vector<TreeRecord> records; // every record posted, drawn on the row map's picture
   std::unique_ptr<RowMap> row_map;
   GstTreeStereoTimes last_times{GST_CLOCK_TIME_NONE, GST_CLOCK_TIME_NONE, GST_CLOCK_TIME_NONE};
@@ -300,7 +301,8 @@ static void post_records(GstTreeMetrics *self, const std::vector<TreeRecord> &re
  * 0.25 m/s (RowDirection::kMinSpanMm is 250 mm). */
 static constexpr std::size_t kMaxHeldFrames = 10;
 
-/* Hands the held frames to the tracker along the row's direction as it is now. */
+/* Hands the held frames to the tracker along the row's direction as it is now; no frame is held
+ * after. */
 static std::vector<TreeRecord> release_held(Along &a)
 {
   std::vector<TreeRecord> out;
@@ -311,6 +313,16 @@ static std::vector<TreeRecord> release_held(Along &a)
     out.insert(out.end(), r.begin(), r.end());
   }
   a.held.clear();
+  a.holding = false;
+  return out;
+}
+
+/* The held frames, then every track left: the records of the trees still in view. */
+static std::vector<TreeRecord> finish_tracker(Along &a)
+{
+  std::vector<TreeRecord> out = release_held(a);
+  std::vector<TreeRecord> rest = a.tracker->finish();
+  out.insert(out.end(), rest.begin(), rest.end());
   return out;
 }
 
@@ -323,9 +335,7 @@ static void finish_trees(GstTreeMetrics *self)
     return;
   std::vector<TreeRecord> left;
   treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
-    left = release_held(a);
-    std::vector<TreeRecord> rest = a.tracker->finish();
-    left.insert(left.end(), rest.begin(), rest.end());
+    left = finish_tracker(a);
     return true;
   });
   post_records(self, left, &a.last_times);
@@ -490,10 +500,7 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
       canopy->mode == GST_TREE_STEREO_CANOPY_ROW ? CanopyMode::Row : CanopyMode::Tree;
   if (s.trees) {
     if (a.tracker && a.tracker->params().mode != mode) {
-      // stereodepth's canopy mode changed: the tracks were another's
-      out = release_held(a);
-      std::vector<TreeRecord> rest = a.tracker->finish();
-      out.insert(out.end(), rest.begin(), rest.end());
+      out = finish_tracker(a); // stereodepth's canopy mode changed: the tracks were another's
       a.tracker.reset();
     }
     if (!a.tracker) {
@@ -535,7 +542,8 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
     }
     a.held.push_back(std::move(f));
     const bool measuring = s.speed <= 0 && s.travel;
-    if (!measuring || a.row_direction.measured() || a.held.size() >= kMaxHeldFrames) {
+    if (!a.holding || !measuring || a.row_direction.measured() ||
+        a.held.size() >= kMaxHeldFrames) {
       std::vector<TreeRecord> r = release_held(a);
       out.insert(out.end(), r.begin(), r.end());
     }

@@ -230,8 +230,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   if (!std::isfinite(position_mm))
     throw BadInput("row map: position_mm must be finite");
   const cv::Vec3d &dir = row_direction;
-  if (!std::isfinite(dir[0]) || !std::isfinite(dir[1]) || !std::isfinite(dir[2]) ||
-      std::abs(cv::norm(dir) - 1) > 1e-6 || !(dir[0] > 0.5))
+  if (!is_row_direction(dir))
     throw BadInput("row map: the row's direction must be a unit vector within 60 degrees of the "
                    "camera's x axis (RowDirection::direction())");
 

@@ -2,6 +2,7 @@
 
 #include "treestereo/errors.hpp"
 #include "treestereo/stats.hpp"
+#include "treestereo/travel.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -58,8 +59,7 @@ void check_frame(const TrackFrame &f)
                          " hi_clear_mm=" + std::to_string(s.hi_clear_mm) +
                          " trunk_mm=" + std::to_string(s.trunk_mm));
   const cv::Vec3d &d = f.row_direction;
-  if (!std::isfinite(d[0]) || !std::isfinite(d[1]) || !std::isfinite(d[2]) ||
-      std::abs(cv::norm(d) - 1) > 1e-6 || !(d[0] > 0.5))
+  if (!is_row_direction(d))
     throw BadInput("The row's direction in the frame cannot be used: the tree tracker needs a "
                    "unit vector within 60 degrees of the camera's x axis "
                    "(RowDirection::direction() gives it).",

@@ -944,6 +944,12 @@ cv::Vec3d in_ground_plane(const cv::Vec3d &v, const GroundPlane &ground)
   return cv::norm(a) > 0.5 ? cv::normalize(a) : u; // the plane is not (nearly) across v
 }
 
+bool is_row_direction(const cv::Vec3d &d)
+{
+  return std::isfinite(d[0]) && std::isfinite(d[1]) && std::isfinite(d[2]) &&
+         std::abs(cv::norm(d) - 1) <= 1e-6 && d[0] > 0.5;
+}
+
 RowDirection::RowDirection(double min_span_mm) : min_span_mm_(min_span_mm)
 {
   if (!(min_span_mm >= 0) || !std::isfinite(min_span_mm))

@@ -256,6 +256,10 @@ private:
 // normalised, when there is no ground or `v` stands (nearly) across it.
 cv::Vec3d in_ground_plane(const cv::Vec3d &v, const GroundPlane &ground);
 
+// Whether `d` can stand for the row's direction: a finite unit vector (within 1e-6) within 60
+// degrees of the x axis, as RowDirection::direction() gives.
+bool is_row_direction(const cv::Vec3d &d);
+
 // The place along the row of point `p` (rectified-left frame, mm): its projection on the row's
 // unit direction `d` (RowDirection::direction()). d = (1, 0, 0) gives p's X.
 inline double along_row(const cv::Vec3d &p, const cv::Vec3d &d) { return p.dot(d); }
