@@ -449,7 +449,8 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
   }
   const bool had_views = a.odometer->has_previous();
   const auto t0 = std::chrono::steady_clock::now();
-  const OdometryStep step = a.odometer->add(left, right, points, geometry, a.ground);
+  const OdometryStep step =
+      a.odometer->add(left, right, points, geometry, a.row_direction.direction(a.ground));
   if (had_views) {
     const Motion &m = step.motion;
     const double ms =

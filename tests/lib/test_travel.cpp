@@ -356,36 +356,43 @@ TEST(EstimateMotion, TravelOfConsecutiveOrchardFramesIsTheRenderersTravel)
       }
 }
 
-TEST(EstimateMotion, TravelIsMeasuredAlongTheGroundWhenTheGroundIsGiven)
+TEST(EstimateMotion, TravelIsTheDisplacementAlongTheRowsDirection)
 {
   const StereoGeometry *g = nullptr;
   const Frame &prev = frame_of(kVga, 2.0, 2);
   const Frame &cur = frame_of(kVga, 2.0, 3, &g);
   const double truth = truth_travel(kVga, 2.0, 3);
-  // The renderer's ground: y = camera height in the rendered left frame, normal up (-y).
+  // The renderer's rig drives along the rendered left camera's x, R1 x in the rectified frame;
+  // before the row's direction is measured, the x axis in the ground plane stands in.
   GroundPlane level;
   level.found = true;
   level.normal = g->R1 * cv::Vec3d(0, -1, 0);
   level.d = 950;
-  const Motion a = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
-                                   cur.view[RIGHT], cur.vegetation, *g, TravelParams(), level);
-  ASSERT_TRUE(a.found);
-  EXPECT_NEAR(a.travel_mm, truth, 0.02 * truth);
-  EXPECT_LT(std::abs(a.along.dot(level.normal)), 1e-9);
-  // A ground rolled 30 degrees about the optical axis: along the row is then 30 degrees off the
-  // camera's x, and only cos(30) of the rig's motion is along it.
-  GroundPlane rolled = level;
-  rolled.normal = g->R1 * cv::Vec3d(std::sin(CV_PI / 6), -std::cos(CV_PI / 6), 0);
+  const cv::Vec3d drive = g->R1 * cv::Vec3d(1, 0, 0);
+  for (const cv::Vec3d &along : {drive, in_ground_plane(cv::Vec3d(1, 0, 0), level)}) {
+    const Motion a = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                     cur.view[RIGHT], cur.vegetation, *g, TravelParams(), along);
+    ASSERT_TRUE(a.found);
+    EXPECT_NEAR(a.travel_mm, truth, 0.02 * truth);
+    EXPECT_EQ(a.along, along);
+  }
+  // A row 30 degrees off the rig's motion: only cos(30) of the motion is along it, and the
+  // displacement itself does not depend on the direction.
+  const Motion m = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                   cur.view[RIGHT], cur.vegetation, *g, TravelParams(), drive);
+  const cv::Vec3d off = g->R1 * cv::Vec3d(std::cos(CV_PI / 6), 0, std::sin(CV_PI / 6));
   const Motion b = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
-                                   cur.view[RIGHT], cur.vegetation, *g, TravelParams(), rolled);
-  ASSERT_TRUE(b.found);
+                                   cur.view[RIGHT], cur.vegetation, *g, TravelParams(), off);
+  ASSERT_TRUE(m.found && b.found);
   EXPECT_NEAR(b.travel_mm, truth * std::cos(CV_PI / 6), 0.02 * truth);
-  // A plane not found is not used.
-  GroundPlane none = rolled;
-  none.found = false;
-  const Motion c = estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
-                                   cur.view[RIGHT], cur.vegetation, *g, TravelParams(), none);
-  EXPECT_EQ(c.along, cv::Vec3d(1, 0, 0));
+  EXPECT_LT(cv::norm(b.displacement_mm - m.displacement_mm), 1e-9);
+  EXPECT_NEAR(b.travel_mm, m.displacement_mm.dot(off), 1e-9);
+  // What cannot be a row's direction is refused by name.
+  for (const cv::Vec3d &bad : {cv::Vec3d(0, 0, 1), cv::Vec3d(2, 0, 0), cv::Vec3d(-1, 0, 0),
+                               cv::Vec3d(std::nan(""), 0, 0)})
+    EXPECT_THROW(estimate_motion(prev.view[LEFT], prev.view[RIGHT], cur.view[LEFT],
+                                 cur.view[RIGHT], cur.vegetation, *g, TravelParams(), bad),
+                 BadInput);
 }
 
 TEST(EstimateMotion, FramesInReverseAreNegativeTravel)

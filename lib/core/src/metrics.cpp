@@ -345,7 +345,13 @@ EdgeOutline edge_outline(const std::vector<CanopyPoint> &pts, const cv::Mat &mas
 // little lower and which stands in front, makes the depth fall steeply away from the line, and
 // the extrapolation puts the limb 50-150 mm behind the edge's cluster (heights 2-4 % high in
 // the orchard, docs/results.md "The limb's depth from the edge's own cluster").
-// When the fit fails or does not recede, the distance from the line stands in,
+// A fit that does not recede (b1 >= 0: clusters at several depths on the cap, none showing its
+// limb) still puts the boundary's depth at b0, with no rounding beyond it. Not the distance from
+// the line instead: over every point near the edge that fit extrapolates far behind the edge
+// (the orchard's seed 5, tree 1: its bottom's limb at 2.07-2.28 m where the cap's b0 is
+// 2.00-2.04 m and the truth about 2.03 m, +3.5 % in height; docs/results.md "A cap that does
+// not recede").
+// When the fit fails (too few points), the distance from the line stands in,
 // z = a0 + a1 sqrt(distance / extent), limb at a0; when that fails or does not recede either,
 // the points' median.
 // `clipped`: the edge is the image border, not a limb (the canopy goes on beyond it), so there is
@@ -388,8 +394,8 @@ double side_depth(const std::vector<CanopyPoint> &pts, const StereoGeometry &g, 
         zz.push_back(pts[i].z_mm);
       }
     double b0 = 0, b1 = 0;
-    if (zz.size() >= min_points && robust_line_fit(sq, zz, b0, b1) && b1 < 0) {
-      rho = 0.5 * b1 * b1;
+    if (zz.size() >= min_points && robust_line_fit(sq, zz, b0, b1)) {
+      rho = b1 < 0 ? 0.5 * b1 * b1 : 0.0;
       return b0;
     }
     double a0 = 0, a1 = 0;

@@ -658,10 +658,15 @@ double huber_cost(const std::vector<Tracked> &pts, const StereoGeometry &g, cons
 
 Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, const cv::Mat &left,
                        const cv::Mat &right, const std::vector<PixelPoint> &points,
-                       const StereoGeometry &g, const TravelParams &p, const GroundPlane &ground)
+                       const StereoGeometry &g, const TravelParams &p, const cv::Vec3d &along)
 {
   validate(p);
   require_valid(g, "the rig's motion", "estimate_motion");
+  if (!is_row_direction(along))
+    throw BadInput("The row's direction is not a unit vector within 60 degrees of the camera's x "
+                   "axis: give RowDirection::direction().",
+                   "estimate_motion: along (" + std::to_string(along[0]) + ", " +
+                       std::to_string(along[1]) + ", " + std::to_string(along[2]) + ")");
   const cv::Mat *views[4] = {&prev_left, &prev_right, &left, &right};
   for (const cv::Mat *v : views) {
     if (v->size() != g.view_size)
@@ -684,7 +689,6 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
                        std::to_string(left.channels()) + " channels");
 
   Motion out;
-  const cv::Vec3d along = in_ground_plane(cv::Vec3d(1, 0, 0), ground);
   out.along = along;
 
   // Candidates: valid points in front of the rig whose right pixel is inside the view.
@@ -879,7 +883,7 @@ void Odometer::reset()
 
 OdometryStep Odometer::add(const cv::Mat &left, const cv::Mat &right,
                            const std::vector<PixelPoint> &points, const StereoGeometry &geometry,
-                           const GroundPlane &ground)
+                           const cv::Vec3d &along)
 {
   OdometryStep out;
   const bool usable = !prev_[0].empty() && prev_[0].size() == left.size() &&
@@ -891,7 +895,7 @@ OdometryStep Odometer::add(const cv::Mat &left, const cv::Mat &right,
     if (!key_is_prev_ &&
         std::abs(since_key_mm_ + last_step_mm_) <= params_.key_span_mm) {
       const Motion m =
-          estimate_motion(key_[0], key_[1], left, right, points, geometry, params_.travel, ground);
+          estimate_motion(key_[0], key_[1], left, right, points, geometry, params_.travel, along);
       if (m.found && std::isfinite(m.travel_mm)) {
         out.found = out.from_key = true;
         out.travel_mm = m.travel_mm - since_key_mm_;
@@ -901,7 +905,7 @@ OdometryStep Odometer::add(const cv::Mat &left, const cv::Mat &right,
     }
     if (!out.found) {
       const Motion m = estimate_motion(prev_[0], prev_[1], left, right, points, geometry,
-                                       params_.travel, ground);
+                                       params_.travel, along);
       if (m.found && std::isfinite(m.travel_mm)) {
         out.found = true;
         out.travel_mm = m.travel_mm;

@@ -147,14 +147,16 @@ struct Motion {
 // The motion of the rig from the previous stereo frame to the current one. `prev_left`,
 // `prev_right`, `left`, `right`: rectified views of the geometry's view size, all one type
 // (CV_8UC1, or CV_8UC3 / CV_8UC4 in BGR(A)); `points`: the current frame's 3D points with their
-// left pixels (invalid ones are skipped); `ground`: the current frame's ground plane, if found:
-// travel is then measured along the camera's x axis projected onto it, otherwise along x.
+// left pixels (invalid ones are skipped); `along`: the row's direction in the current frame's
+// axes, as RowDirection::direction() gives it (is_row_direction()): the travel is the rig's
+// displacement along it. Not the camera's x axis: on cameras yawed 5 degrees on the rig, x would
+// read the travel 0.4 % short.
 // found = false when too few points track or agree. Throws BadInput on inconsistent input,
 // BadSettings on parameters out of range.
 Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, const cv::Mat &left,
                        const cv::Mat &right, const std::vector<PixelPoint> &points,
                        const StereoGeometry &geometry, const TravelParams &params = TravelParams(),
-                       const GroundPlane &ground = GroundPlane());
+                       const cv::Vec3d &along = cv::Vec3d(1, 0, 0));
 
 // ---- The travel over a sequence: key frames ----
 //
@@ -187,13 +189,13 @@ public:
   explicit Odometer(const OdometerParams &params = OdometerParams()); // validates
 
   // Adds a frame: its rectified views (as estimate_motion() takes them), its 3D points with
-  // their left pixels and its ground plane. The odometer keeps the views (cv::Mat shares the
+  // their left pixels and the row's direction. The odometer keeps the views (cv::Mat shares the
   // pixels): they must not be written afterwards. The first frame, a frame of another size or
   // type, and a frame whose motion is found neither from the key frame nor from the previous
   // frame give found = false, and the frame starts a new key. Throws what estimate_motion()
   // throws.
   OdometryStep add(const cv::Mat &left, const cv::Mat &right, const std::vector<PixelPoint> &points,
-                   const StereoGeometry &geometry, const GroundPlane &ground = GroundPlane());
+                   const StereoGeometry &geometry, const cv::Vec3d &along = cv::Vec3d(1, 0, 0));
 
   // Forgets every frame kept: the next frame is a first one.
   void reset();
@@ -240,8 +242,7 @@ public:
   static constexpr double kMinStepMm = 10;
   // The unit direction. Before min_span_mm of displacements, or when they point more than 60
   // degrees off the x axis (cameras looking along the row, not across it): the x axis (in the
-  // ground plane when it is found), which estimate_motion() measures the travel along. The ground
-  // is not used otherwise.
+  // ground plane when it is found). The ground is not used otherwise.
   cv::Vec3d direction(const GroundPlane &ground = GroundPlane()) const;
   // The displacements add up to min_span_mm, within 60 degrees of the x axis.
   bool measured() const;
