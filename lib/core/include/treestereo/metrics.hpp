@@ -15,7 +15,8 @@
 //    from it: the surface recedes as sqrt(distance from the limb) there, so the depth is fitted
 //    as b0 + b1 * sqrt(d) and b0 (the limb's depth) taken, over the points of the leaf cluster
 //    that forms the edge (the outline's cap up to its first valley), d being each point's
-//    distance inside the silhouette's own boundary on its row or column. Between the edges the
+//    distance inside the silhouette's own boundary on its row or column; b0 also when those
+//    points do not recede (b1 >= 0: clusters at several depths). Between the edges the
 //    conversion depth is interpolated linearly in slope (bands, area, perimeter). An edge on the
 //    image border (see `clipped`) is no limb: it takes the median depth of those points instead,
 //    a depth where its ray is inside the canopy, so that the extent stays a lower bound. On the
