@@ -301,12 +301,11 @@ static void post_records(GstTreeMetrics *self, const std::vector<TreeRecord> &re
  * 0.25 m/s (RowDirection::kMinSpanMm is 250 mm). */
 static constexpr std::size_t kMaxHeldFrames = 10;
 
-/* Hands the held frames to the tracker along the row's direction as it is now; no frame is held
- * after. */
-static std::vector<TreeRecord> release_held(Along &a)
+/* Hands the held frames to the tracker along the row's direction `d` (RowDirection::direction()
+ * as it is now); no frame is held after. */
+static std::vector<TreeRecord> release_held(Along &a, const cv::Vec3d &d)
 {
   std::vector<TreeRecord> out;
-  const cv::Vec3d d = a.row_direction.direction(a.ground);
   for (TrackFrame &f : a.held) {
     f.row_direction = d;
     std::vector<TreeRecord> r = a.tracker->update(f);
@@ -318,9 +317,9 @@ static std::vector<TreeRecord> release_held(Along &a)
 }
 
 /* The held frames, then every track left: the records of the trees still in view. */
-static std::vector<TreeRecord> finish_tracker(Along &a)
+static std::vector<TreeRecord> finish_tracker(Along &a, const cv::Vec3d &d)
 {
-  std::vector<TreeRecord> out = release_held(a);
+  std::vector<TreeRecord> out = release_held(a, d);
   std::vector<TreeRecord> rest = a.tracker->finish();
   out.insert(out.end(), rest.begin(), rest.end());
   return out;
@@ -335,7 +334,7 @@ static void finish_trees(GstTreeMetrics *self)
     return;
   std::vector<TreeRecord> left;
   treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
-    left = finish_tracker(a);
+    left = finish_tracker(a, a.row_direction.direction(a.ground));
     return true;
   });
   post_records(self, left, &a.last_times);
@@ -486,11 +485,13 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
   return source;
 }
 
-/* The trees along the row (tree records) and the row map, fed with this frame. */
+/* The trees along the row (tree records) and the row map, fed with this frame; `row_direction`:
+ * the frame's, as its metrics meta carries it. */
 static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, const Settings &s,
                                           const StereoGeometry &geometry,
                                           const GstTreeStereoCanopyMeta *canopy,
-                                          const GstTreeStereoPointsMeta *pm, const TreeMetrics &m)
+                                          const GstTreeStereoPointsMeta *pm, const TreeMetrics &m,
+                                          const cv::Vec3d &row_direction)
 {
   Along &a = self->state->along;
   std::vector<TreeRecord> out;
@@ -501,7 +502,8 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
       canopy->mode == GST_TREE_STEREO_CANOPY_ROW ? CanopyMode::Row : CanopyMode::Tree;
   if (s.trees) {
     if (a.tracker && a.tracker->params().mode != mode) {
-      out = finish_tracker(a); // stereodepth's canopy mode changed: the tracks were another's
+      // stereodepth's canopy mode changed: the tracks were another's
+      out = finish_tracker(a, row_direction);
       a.tracker.reset();
     }
     if (!a.tracker) {
@@ -545,7 +547,7 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
     const bool measuring = s.speed <= 0 && s.travel;
     if (!a.holding || !measuring || a.row_direction.measured() ||
         a.held.size() >= kMaxHeldFrames) {
-      std::vector<TreeRecord> r = release_held(a);
+      std::vector<TreeRecord> r = release_held(a, row_direction);
       out.insert(out.end(), r.begin(), r.end());
     }
   }
@@ -556,7 +558,7 @@ static std::vector<TreeRecord> follow_row(GstTreeMetrics *self, GstBuffer *buf, 
       a.row_map = std::make_unique<RowMap>(rp);
     }
     treestereo::gst::feed_row_map(*a.row_map, buf, geometry, canopy, pm, a.ground, a.position_mm,
-                                  a.row_direction.direction(a.ground));
+                                  row_direction);
   }
   return out;
 }
@@ -658,7 +660,7 @@ static GstFlowReturn gst_tree_metrics_transform_ip(GstBaseTransform *trans, GstB
       for (int i = 0; i < 3; i++)
         out->row_direction[i] = dir[i];
     }
-    records = follow_row(self, buf, s, geometry, canopy, pm, m);
+    records = follow_row(self, buf, s, geometry, canopy, pm, m, dir);
     return true;
   });
   if (!ok)

@@ -582,31 +582,30 @@ GST_START_TEST(test_trees_and_row_map_on_the_orchard)
     fail_unless(rec.frames_seen > 0);
     fail_unless_equals_int(rec.has_spacing, i > 0);
     const double lo = rec.start_m + origin_m, hi = rec.end_m + origin_m;
-    const RowTree truth = tree_of(renderer, rec);
-    const RowTree *best = &truth;
+    const RowTree best = tree_of(renderer, rec);
     std::printf("tree %u%s: %.3f..%.3f m (truth %.3f..%.3f), height %s%.3f (truth %.3f), width "
                 "%s%.3f (truth %.3f), distance %.3f (trunk %.3f), %u frames, %u seen\n",
-                rec.id, rec.complete ? "" : " (incomplete)", lo, hi, best->start_m, best->end_m,
-                rec.has_height ? "" : "none ", rec.height_m, best->height_m,
-                rec.has_width ? "" : "none ", rec.width_m, best->width_m, rec.distance_m,
-                best->distance_m, rec.frames, rec.frames_seen);
+                rec.id, rec.complete ? "" : " (incomplete)", lo, hi, best.start_m, best.end_m,
+                rec.has_height ? "" : "none ", rec.height_m, best.height_m,
+                rec.has_width ? "" : "none ", rec.width_m, best.width_m, rec.distance_m,
+                best.distance_m, rec.frames, rec.frames_seen);
     if (rec.start_seen)
-      fail_unless(std::fabs(lo - best->start_m) < 0.12, "tree %u start %.3f, truth %.3f", rec.id,
-                  lo, best->start_m);
+      fail_unless(std::fabs(lo - best.start_m) < 0.12, "tree %u start %.3f, truth %.3f", rec.id,
+                  lo, best.start_m);
     if (rec.end_seen)
-      fail_unless(std::fabs(hi - best->end_m) < 0.12, "tree %u end %.3f, truth %.3f", rec.id, hi,
-                  best->end_m);
+      fail_unless(std::fabs(hi - best.end_m) < 0.12, "tree %u end %.3f, truth %.3f", rec.id, hi,
+                  best.end_m);
     if (rec.has_height)
-      fail_unless(std::fabs(rec.height_m - best->height_m) < 0.15 * best->height_m,
-                  "tree %u height %.3f, truth %.3f", rec.id, rec.height_m, best->height_m);
+      fail_unless(std::fabs(rec.height_m - best.height_m) < 0.15 * best.height_m,
+                  "tree %u height %.3f, truth %.3f", rec.id, rec.height_m, best.height_m);
     if (rec.has_width)
-      fail_unless(std::fabs(rec.width_m - best->width_m) < 0.15 * best->width_m,
-                  "tree %u width %.3f, truth %.3f", rec.id, rec.width_m, best->width_m);
+      fail_unless(std::fabs(rec.width_m - best.width_m) < 0.15 * best.width_m,
+                  "tree %u width %.3f, truth %.3f", rec.id, rec.width_m, best.width_m);
     if (rec.has_depth) {
       // the canopy's visible surface lies in front of the trunk, within its depth
-      fail_unless(rec.distance_m < best->distance_m + 0.05 &&
-                      rec.distance_m > best->distance_m - best->depth_m / 2 - 0.1,
-                  "tree %u distance %.3f, trunk %.3f", rec.id, rec.distance_m, best->distance_m);
+      fail_unless(rec.distance_m < best.distance_m + 0.05 &&
+                      rec.distance_m > best.distance_m - best.depth_m / 2 - 0.1,
+                  "tree %u distance %.3f, trunk %.3f", rec.id, rec.distance_m, best.distance_m);
       fail_unless(rec.confidence > 0.5 && rec.confidence <= 1.0);
       fail_unless(rec.n_bands > 0);
     }
