@@ -832,7 +832,7 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
         disp_out[std::size_t(l_out.at<int>(q))] = d;
     }
     const bool cut = std::isfinite(r.cut_lo_mm) || std::isfinite(r.cut_hi_mm);
-    cv::Mat L, R;
+    cv::Mat L, R, Lback;
     int rx0 = 0;
     const int h = p.seam_half_window;
     if (seam) {
@@ -846,8 +846,12 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       rx0 = std::max(0, box.x - int(std::ceil(dmax)) - h - 3);
       const int rx1 = std::min(size.width, box.x + box.width + h + 3);
       R = to_gray8(right(cv::Rect(rx0, box.y, rx1 - rx0, box.height)), order);
+      // Left-view columns those right-view columns see the farther surfaces at (the check back
+      // from the right view), from rx0 on.
+      const int lx1 = std::min(size.width, rx1 + int(std::ceil(dmax)) + 3);
+      Lback = to_gray8(left(cv::Rect(rx0, box.y, lx1 - rx0, box.height)), order);
     }
-    detail::Patch patch;
+    detail::Patch patch, back_patch;
     // Best ZNCC of the pixel at (x, y) (box coordinates) with the right view at disparities
     // d_in and d_out (whole pixels within +-2 of each), over shiftable windows: the patch
     // centred on the pixel and the two with the pixel at their top or bottom edge, so that a
@@ -856,7 +860,10 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     // camera does not see, the near surface's match.) Each window's patch is built once; the
     // shifted ones are only tried when the centred one leaves the nearer hypothesis short of a
     // clear match.
-    auto seam_scores = [&](int x, int y, float d_in, float d_out, double &s_in, double &s_out) {
+    // `in_at` (when given) receives the right-view window (column in R, row) of the best d_in
+    // score.
+    auto seam_scores = [&](int x, int y, float d_in, float d_out, double &s_in, double &s_out,
+                           cv::Point *in_at = nullptr) {
       s_in = s_out = -2;
       static const int shifts[3][2] = {{0, 0}, {0, -1}, {0, 1}};
       const bool in_near = d_in > d_out;
@@ -870,13 +877,35 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
           const int xr_c = int(std::lround(px + box.x - (k == 0 ? d_in : d_out))) - rx0;
           for (int dx = -2; dx <= 2; ++dx) {
             const int xr = xr_c + dx;
-            if (xr - h >= 0 && xr + h < R.cols)
-              best = std::max(best, detail::zncc(patch, R, xr, py));
+            if (xr - h >= 0 && xr + h < R.cols) {
+              const double score = detail::zncc(patch, R, xr, py);
+              if (score > best) {
+                best = score;
+                if (k == 0 && in_at)
+                  *in_at = cv::Point(xr, py);
+              }
+            }
           }
         }
         if ((in_near ? s_in : s_out) >= kSeamClearScore)
           break;
       }
+    };
+    // The check back from the right view: the best ZNCC of the right-view window at `at` (R
+    // coordinates) with the left view at disparity d (+-2 px), the left pixel that would show
+    // the same surface if it lies at that disparity.
+    auto back_score = [&](cv::Point at, float d) {
+      double best = -2;
+      if (at.y - h < 0 || at.y + h >= R.rows ||
+          !detail::centred_patch(R, at.x, at.y, h, back_patch))
+        return best;
+      const int xl_c = at.x + int(std::lround(d));
+      for (int dx = -2; dx <= 2; ++dx) {
+        const int xl = xl_c + dx;
+        if (xl - h >= 0 && xl + h < Lback.cols)
+          best = std::max(best, detail::zncc(back_patch, Lback, xl, at.y));
+      }
+      return best;
     };
     for (int y = 0; y < ss.height; ++y) {
       const float *di = d_in.ptr<float>(y), *dout = d_out.ptr<float>(y);
@@ -986,14 +1015,21 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
           // on a tie (a smooth patch matches anywhere).
           double s_in = -2, s_far = -2;
           bool canopy_nearer = true;
+          cv::Point in_at(-1, -1);
+          float d_far = 0;
           for (float dv_out : others) {
             if (dv_out <= 0 || std::abs(dv_in - dv_out) <= 3.0f)
               continue;
             double a, b;
-            seam_scores(x * f, y * f, dv_in, dv_out, a, b);
-            s_in = std::max(s_in, a);
+            cv::Point at(-1, -1);
+            seam_scores(x * f, y * f, dv_in, dv_out, a, b, &at);
+            if (a > s_in) {
+              s_in = a;
+              in_at = at;
+            }
             if (b > s_far) {
               s_far = b;
+              d_far = dv_out;
               canopy_nearer = dv_in > dv_out;
             }
           }
@@ -1002,8 +1038,17 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
             seam_scores(x * f, y * f, dv_in, dv_in, a, b);
             s_in = a;
           }
-          const bool in = canopy_nearer ? s_in >= kSeamMinScore && s_in > s_far
-                                        : !(s_far >= kSeamMinScore && s_far > s_in);
+          bool in = canopy_nearer ? s_in >= kSeamMinScore && s_in > s_far
+                                  : !(s_far >= kSeamMinScore && s_far > s_in);
+          // Beside the canopy's left edge lies a strip of the farther surface the right camera
+          // does not see (as wide as the two disparities differ): there the farther hypothesis
+          // finds the canopy in the right view, and a surface with little texture of its own
+          // (mown grass, shaded along the view) may correlate with itself a strip further on at
+          // the canopy's disparity. The right-view window that canopy match found shows the
+          // canopy if the pixel is the canopy's, and the farther surface if it is not; that
+          // surface's own left pixel, at its disparity, then matches it at least as well.
+          if (in && canopy_nearer && d_far > 0 && in_at.x >= 0 && back_score(in_at, d_far) >= s_in)
+            in = false;
           m[x] = in ? 255 : 0;
           ++r.n_seam_pixels;
         }
