@@ -609,7 +609,8 @@ static gpointer supervise(gpointer data)
  * stay in the bin and the supervisor acts. A not-negotiated flow (the caps ask for what the
  * camera cannot give) is a configuration fault and goes to the bus, unless a camera has streamed
  * with these caps in this run: then it is a camera caught while it restarts (seen with a fake
- * camera killed and started again), and the attempt fails like any other. */
+ * camera killed and started again), and the attempt fails like any other. So it does when
+ * another process controls the camera: that passes too. */
 static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
 {
   GstTreeCameraSrc *self = GST_TREE_CAMERA_SRC(bin);
@@ -637,9 +638,14 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
     const bool from_source = st.source && from == GST_OBJECT(st.source);
     if ((from_opening || from_source) && st.first_error.empty())
       st.first_error = err->message;
+    // Another process controls the camera (GigE Vision grants streaming to one controller, and
+    // a process that ended without letting go holds it until its heartbeat times out, a few
+    // seconds): aravissrc's set_caps fails with aravis's "Controller privilege required", which
+    // passes. Only that message tells it from caps the camera refuses.
+    const bool held = st.first_error.find("privilege") != std::string::npos;
     if (from_camera && st.eos) {
       keep = true; // the end was asked for: a camera failing now changes nothing
-    } else if (from_camera && flow == GST_FLOW_NOT_NEGOTIATED && !st.streamed) {
+    } else if (from_camera && flow == GST_FLOW_NOT_NEGOTIATED && !st.streamed && !held) {
       // also from an aravissrc the supervisor has just taken off the chain for the error that
       // came before this one (set_caps's), which it may see first
       st.phase = Phase::Stopped; // goes to the bus: the caps are wrong, retrying cannot help

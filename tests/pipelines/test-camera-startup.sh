@@ -11,6 +11,7 @@
 #   - frames reached the sink;
 #   - a flow EOS from downstream (fakesink num-buffers=5) ends the pipeline: its EOS reaches the
 #     bus, no loss is reported;
+#   - a camera another process controls is retried until it is let go, not refused;
 #   - a feature the camera does not have ends the pipeline with an error naming it.
 #   TREESTEREO_STARTUP_WRITES  feature writes in the set-up (default 6500: about 0.5 s with
 #                              the fake camera; the one argument must stay under 128 KiB)
@@ -63,6 +64,29 @@ rc=$?
 if grep -q 'state=(string)lost\|WARNING' "$tmp/out.log"; then
   report; echo "FAIL: the end asked for downstream was taken for a loss"; exit 1
 fi
+# Another process controls the camera (a run that has not let go of it yet): aravissrc's set-up
+# is refused with "Controller privilege required". That passes, so treecamerasrc retries, and
+# streams once the other process lets go; it is no configuration fault. The holder streams for
+# 5 s (treecamerasrc takes up to 2 s to open a camera).
+timeout -s INT -k 5 5 gst-launch-1.0 -e aravissrc camera-name=127.0.0.1 ! fakesink \
+  >"$tmp/holder.log" 2>&1 &
+holder=$!
+sleep 1.5
+: >"$tmp/debug.log"
+GST_DEBUG=treecamerasrc:5 GST_DEBUG_NO_COLOR=1 GST_DEBUG_FILE="$tmp/debug.log" \
+  timeout -k 5 30 gst-launch-1.0 -m treecamerasrc camera=127.0.0.1 \
+  caps=video/x-bayer,framerate=10/1 timeout=$timeout_ms reconnect-interval=250 \
+  ! fakesink num-buffers=5 >"$tmp/out.log" 2>&1
+rc=$?
+wait "$holder"
+grep -q "privilege" "$tmp/out.log" "$tmp/debug.log" ||
+  { report; cat "$tmp/holder.log"; echo "FAIL: the other process did not hold the camera: nothing was checked"; exit 1; }
+[ "$rc" -eq 0 ] ||
+  { report; echo "FAIL: a camera held by another process: gst-launch exit status $rc (1: taken for a configuration fault; 124: no EOS within 30 s)"; exit 1; }
+grep -q 'state=(string)back' "$tmp/out.log" ||
+  { report; echo "FAIL: a camera held by another process: no 'back' message once it was let go"; exit 1; }
+grep -m1 -o "WARNING: .*lost: .*" "$tmp/out.log"
+
 # A feature the camera does not have: an error naming it ends the pipeline (aravissrc's flow error
 # alone would say "Internal data stream error"), with no retrying.
 timeout -k 5 20 gst-launch-1.0 treecamerasrc camera=127.0.0.1 caps=video/x-bayer,framerate=10/1 \
@@ -71,4 +95,4 @@ rc=$?
 [ "$rc" -eq 1 ] && grep -q "cannot stream as configured.*NoSuchFeature" "$tmp/out.log" ||
   { cat "$tmp/out.log"; echo "FAIL: a missing feature: exit status $rc, no error naming it"; exit 1; }
 echo "$(grep -m1 'cannot stream as configured' "$tmp/out.log")"
-echo "OK: a ${setup} s set-up, longer than the ${timeout_ms} ms timeout, was no loss; a flow EOS from downstream ended the pipeline; a missing feature was named"
+echo "OK: a ${setup} s set-up, longer than the ${timeout_ms} ms timeout, was no loss; a flow EOS from downstream ended the pipeline; a camera held by another process was waited for; a missing feature was named"
