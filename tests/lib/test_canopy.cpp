@@ -118,10 +118,9 @@ struct Scene {
         for (int x = 0; x < s.width; ++x) {
           cv::Vec3d hit;
           const int what = trace(o, (x - g.cx[view]) / g.fx, (y - g.cy) / g.fy, hit);
-          const double shade = 60 + 120 * std::exp(-hit[2] / 5000.0);
-          const uchar v = what == -3                       ? 250
-                          : what == -2 && smooth_ground ? cv::saturate_cast<uchar>(shade)
-                                                        : cv::saturate_cast<uchar>(texture(hit));
+          const double v_hit = what == -2 && smooth_ground ? 60 + 120 * std::exp(-hit[2] / 5000.0)
+                                                          : texture(hit);
+          const uchar v = what == -3 ? 250 : cv::saturate_cast<uchar>(v_hit);
           (view == 0 ? left : right).at<uchar>(y, x) = v;
           if (view == 0) {
             objects.at<int>(y, x) = what;
@@ -314,7 +313,7 @@ TEST(Canopy, TheGrassTheRightCameraCannotSeeBesideTheCrownIsNotCanopy)
   // A crown 0.5 m above mown grass, the camera 0.95 m over it (the drive-by rig's height). The
   // grass's shade changes only down the view, so along a row it correlates with itself at any
   // disparity. Beside the crown's left limb lies a strip of grass (the disparities' difference
-  // wide, 14-19 px here) that the right camera does not see: it shows the crown there. At the
+  // wide, 15-21 px here) that the right camera does not see: it shows the crown there. At the
   // crown's disparity the strip finds more grass a strip further on, and took the crown's side.
   // The grass gives samples only away from the crown (a few matched grass blades), as in the
   // chain.
@@ -344,7 +343,8 @@ TEST(Canopy, TheGrassTheRightCameraCannotSeeBesideTheCrownIsNotCanopy)
   // crown's (the seam test's window reaches 3 px across the edge, and more along the horizon,
   // where the grass's shade is flat), and the leftmost of all, which sets the crown's width,
   // within 3 px.
-  const int mid = int(std::lround(s.g.cy + s.g.fy * 150 / 2000)), radius = int(s.g.fy * 300 / 2000);
+  const int mid = int(std::lround(s.g.cy + s.g.fy * 150 / 2000));
+  const int radius = int(s.g.fy * 300 / 2000);
   int rows = 0, worst = 0, left_truth = r.objects.cols, left_mask = r.objects.cols;
   for (int y = mid - 7 * radius / 10; y <= mid + 7 * radius / 10; ++y) {
     const uchar *t = crown.ptr<uchar>(y), *m = c.silhouette.mask.ptr<uchar>(y);
