@@ -118,9 +118,11 @@ struct Scene {
         for (int x = 0; x < s.width; ++x) {
           cv::Vec3d hit;
           const int what = trace(o, (x - g.cx[view]) / g.fx, (y - g.cy) / g.fy, hit);
-          const double v_hit = what == -2 && smooth_ground ? 60 + 120 * std::exp(-hit[2] / 5000.0)
-                                                          : texture(hit);
-          const uchar v = what == -3 ? 250 : cv::saturate_cast<uchar>(v_hit);
+          // (the sky's hit lies at infinity: no texture there)
+          const double v_hit = what == -3                       ? 250
+                               : what == -2 && smooth_ground ? 60 + 120 * std::exp(-hit[2] / 5000.0)
+                                                             : texture(hit);
+          const uchar v = cv::saturate_cast<uchar>(v_hit);
           (view == 0 ? left : right).at<uchar>(y, x) = v;
           if (view == 0) {
             objects.at<int>(y, x) = what;
