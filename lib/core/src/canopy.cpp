@@ -836,7 +836,6 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     int rx0 = 0;
     const int h = p.seam_half_window;
     if (seam) {
-      L = to_gray8(left(box), order);
       // Right-view columns the disparities can reach.
       float dmax = 0;
       for (float d : disp_in)
@@ -847,9 +846,10 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       const int rx1 = std::min(size.width, box.x + box.width + h + 3);
       R = to_gray8(right(cv::Rect(rx0, box.y, rx1 - rx0, box.height)), order);
       // Left-view columns those right-view columns see the farther surfaces at (the check back
-      // from the right view), from rx0 on.
+      // from the right view), from rx0 on; they hold the box's, which the seam test reads.
       const int lx1 = std::min(size.width, rx1 + int(std::ceil(dmax)) + 3);
       Lback = to_gray8(left(cv::Rect(rx0, box.y, lx1 - rx0, box.height)), order);
+      L = Lback(cv::Rect(box.x - rx0, 0, box.width, box.height));
     }
     detail::Patch patch, back_patch;
     // Best ZNCC of the pixel at (x, y) (box coordinates) with the right view at disparities
