@@ -605,12 +605,28 @@ static gpointer supervise(gpointer data)
   return nullptr;
 }
 
+/* Whether aravissrc's set-up failed because the camera would not take orders now, not because
+ * of what was asked. Another process controls it (GigE Vision grants control to one
+ * application, and one that ended without letting go holds it until its heartbeat times out, a
+ * few seconds): aravis says "Controller privilege required", or the camera refuses or ignores
+ * the register writes ("GigEVision write_register error (access-denied)" or "... timeout"). A
+ * camera that does not answer for a moment fails the same way. Both pass. Only aravis's message
+ * tells them from caps or features the camera refuses ("[Gain] Not found"): aravissrc posts no
+ * error code. */
+static bool camera_held_or_silent(const std::string &error)
+{
+  for (const char *word : {"privilege", "access-denied", "busy", "timeout"})
+    if (error.find(word) != std::string::npos)
+      return true;
+  return false;
+}
+
 /* Errors of the aravissrc (opening, streaming) are a lost camera while reconnecting is on: they
  * stay in the bin and the supervisor acts. A not-negotiated flow (the caps ask for what the
  * camera cannot give) is a configuration fault and goes to the bus, unless a camera has streamed
  * with these caps in this run: then it is a camera caught while it restarts (seen with a fake
  * camera killed and started again), and the attempt fails like any other. So it does when
- * another process controls the camera: that passes too. */
+ * another process controls the camera, or the camera does not answer: that passes too. */
 static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
 {
   GstTreeCameraSrc *self = GST_TREE_CAMERA_SRC(bin);
@@ -638,11 +654,7 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
     const bool from_source = st.source && from == GST_OBJECT(st.source);
     if ((from_opening || from_source) && st.first_error.empty())
       st.first_error = err->message;
-    // Another process controls the camera (GigE Vision grants streaming to one controller, and
-    // a process that ended without letting go holds it until its heartbeat times out, a few
-    // seconds): aravissrc's set_caps fails with aravis's "Controller privilege required", which
-    // passes. Only that message tells it from caps the camera refuses.
-    const bool held = st.first_error.find("privilege") != std::string::npos;
+    const bool held = camera_held_or_silent(st.first_error);
     if (from_camera && st.eos) {
       keep = true; // the end was asked for: a camera failing now changes nothing
     } else if (from_camera && flow == GST_FLOW_NOT_NEGOTIATED && !st.streamed && !held) {
@@ -658,11 +670,14 @@ static void gst_tree_camera_src_handle_message(GstBin *bin, GstMessage *msg)
       // not-linked): a camera failing now changes nothing
       keep = true;
     } else if (from_opening) {
-      st.open_error = err->message;
+      // the first error says why (set_caps's); the flow error that follows it does not
+      if (st.open_error.empty())
+        st.open_error = err->message;
       keep = st.interval > 0;
     } else if (from_source && st.interval > 0) {
+      if (!st.fault)
+        st.fault_reason = err->message;
       st.fault = true;
-      st.fault_reason = err->message;
       keep = true;
       g_cond_broadcast(&st.cond);
     } else if (from_source) {
