@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <limits>
 
 GST_DEBUG_CATEGORY_STATIC(treestereo_common_debug);
 #define GST_CAT_DEFAULT treestereo_common_debug
@@ -293,6 +294,8 @@ GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, 
   meta->n_points = guint(r.classes.size());
   meta->n_canopy_points = guint(r.n_canopy_points);
   meta->n_seam_pixels = guint(r.n_seam_pixels);
+  meta->cut_lo_m = r.cut_lo_mm * kMmToM; // infinite stays infinite
+  meta->cut_hi_m = r.cut_hi_mm * kMmToM;
   const std::size_t n = std::min<std::size_t>(r.segments.size(), GST_TREE_STEREO_MAX_SEGMENTS);
   meta->n_stored_segments = guint(n);
   for (std::size_t i = 0; i < n; i++) {
@@ -498,8 +501,12 @@ void feed_row_map(RowMap &map, GstBuffer *buf, const StereoGeometry &geometry,
   if (mask.empty() || mask.size() != geometry.view_size)
     mask = cv::Mat::zeros(geometry.view_size, CV_8U); // no canopy in view: all seen empty
   const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
+  // mode tree: the mask holds the selected tree alone, so the frame speaks for its part of the
+  // row only (a neighbour's canopy in view is not in the mask)
+  const double lo = canopy ? canopy->cut_lo_m * 1e3 : -std::numeric_limits<double>::infinity();
+  const double hi = canopy ? canopy->cut_hi_m * 1e3 : std::numeric_limits<double>::infinity();
   map.add_frame(mask, pixel_points_of(pm, mm, guint(geometry.view_size.width)), geometry, ground,
-                position_mm, row_direction);
+                position_mm, row_direction, lo, hi);
 }
 
 cv::Vec3d row_direction_of(const GstTreeStereoMetrics &metrics)

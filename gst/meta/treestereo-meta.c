@@ -510,6 +510,8 @@ canopy_transform (GstBuffer * dest, GstMeta * meta, GstBuffer * buffer, GQuark t
   dmeta->n_seam_pixels = src->n_seam_pixels;
   dmeta->n_stored_segments = MIN (src->n_stored_segments, GST_TREE_STEREO_MAX_SEGMENTS);
   memcpy (dmeta->segments, src->segments, sizeof (src->segments));
+  dmeta->cut_lo_m = src->cut_lo_m;
+  dmeta->cut_hi_m = src->cut_hi_m;
   gst_tree_stereo_vegetation_view_copy (&dmeta->view, &src->view);
   if (scale)
     vegetation_view_scale (&dmeta->view, sx, sy);
@@ -536,6 +538,8 @@ gst_buffer_add_tree_stereo_canopy_meta (GstBuffer * buffer, GstTreeStereoCanopyM
     for (i = 0; i < GST_TREE_STEREO_MAX_SEGMENTS; i++)
       meta->segments[i].lo_clear_m = meta->segments[i].hi_clear_m =
           meta->segments[i].trunk_m = NAN;
+    meta->cut_lo_m = -INFINITY;
+    meta->cut_hi_m = INFINITY;
   }
   return meta;
 }

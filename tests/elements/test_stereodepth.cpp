@@ -691,6 +691,7 @@ struct OrchardRun {
   bool canopy_meta = false;
   GstTreeStereoCanopyMode mode = GST_TREE_STEREO_CANOPY_COLOUR;
   bool canopy_present = false;
+  double cut_lo_m = 0, cut_hi_m = 0; // the selected tree's part of the row
   int canopy_x = 0, canopy_w = 0; // the canopy meta's left-view box (px)
   int veg_x = 0, veg_w = 0;       // the vegetation meta's left-view box (px)
   double truth_width_m = 0, truth_z_m = 0, truth_x_m = 0, fx = 0, cx = 0;
@@ -756,6 +757,8 @@ void orchard_handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
   r.canopy_meta = true;
   r.mode = cm->mode;
   r.segments.assign(cm->segments, cm->segments + cm->n_stored_segments);
+  r.cut_lo_m = cm->cut_lo_m;
+  r.cut_hi_m = cm->cut_hi_m;
   r.canopy_present = cm->view.present;
   r.canopy_x = cm->view.bbox_x;
   r.canopy_w = cm->view.bbox_width;
@@ -981,6 +984,24 @@ GST_START_TEST(test_orchard_canopy_is_the_tree_in_front)
       fail_unless(std::isnan(s.trunk_m));
     }
   }
+  /* the tree in front's part of the row holds its segment and ends between it and each
+   * neighbour's (here the next tree on the right; none in view on the left: no end there) */
+  g_print("[ orchard ] the tree's part of the row: %.3f..%.3f m\n", r.cut_lo_m, r.cut_hi_m);
+  for (std::size_t i = 0; i < r.segments.size(); ++i) {
+    const GstTreeStereoRowSegment &s = r.segments[i];
+    if (!s.selected)
+      continue;
+    fail_unless(r.cut_lo_m <= s.lo_m && s.hi_m <= r.cut_hi_m, "segment %.3f..%.3f m", s.lo_m,
+                s.hi_m);
+    if (i == 0)
+      fail_unless(std::isinf(r.cut_lo_m) && r.cut_lo_m < 0);
+    else
+      fail_unless(std::isfinite(r.cut_lo_m) && r.segments[i - 1].hi_m <= r.cut_lo_m);
+    if (i + 1 == r.segments.size())
+      fail_unless(std::isinf(r.cut_hi_m) && r.cut_hi_m > 0);
+    else
+      fail_unless(std::isfinite(r.cut_hi_m) && r.cut_hi_m <= r.segments[i + 1].lo_m);
+  }
   /* the next tree, entering the view on the right: its points reach the edge */
   fail_unless(!r.segments.back().selected && r.segments.back().hi_clear_m < 0.05,
               "the rightmost segment keeps %.3f m inside the right edge",
@@ -1004,6 +1025,9 @@ GST_START_TEST(test_orchard_canopy_off_row_and_empty_zone)
   OrchardRun row = run_orchard("canopy=row");
   fail_unless(row.error == nullptr && row.canopy_meta && row.canopy_present);
   fail_unless_equals_int(row.mode, GST_TREE_STEREO_CANOPY_ROW);
+  /* the whole near row in view: nothing cut */
+  fail_unless(std::isinf(row.cut_lo_m) && row.cut_lo_m < 0 && std::isinf(row.cut_hi_m) &&
+              row.cut_hi_m > 0);
   fail_unless(row.message_canopy && row.message_fields.mode == GST_TREE_STEREO_CANOPY_ROW);
   g_print("[ orchard ] canopy box width: tree %d px, row %d px\n", tree.canopy_w, row.canopy_w);
   fail_unless(row.canopy_w > 1.3 * tree.canopy_w, "row %d px, tree %d px", row.canopy_w,

@@ -163,6 +163,29 @@ std::vector<TreeRecord> trees()
   return out;
 }
 
+// The commands of section `section` for `map` (frames every 100 mm, no valve latency): the
+// positions where it opens and closes.
+void sprayed(const RowMap &map, int section, std::vector<double> &on, std::vector<double> &off)
+{
+  SprayParams sp;
+  sp.valve_latency_ns = 0;
+  SprayPlanner planner(sp);
+  long next = LONG_MIN;
+  std::vector<SectionCommand> cmds;
+  for (double pos = 0; pos <= 4000; pos += 100) {
+    const auto got = planner.update(std::int64_t(pos * 1e6), pos / 1000.0,
+                                    take_final_slices(map, pos, next, {}));
+    cmds.insert(cmds.end(), got.begin(), got.end());
+  }
+  const auto rest = planner.finish();
+  cmds.insert(cmds.end(), rest.begin(), rest.end());
+  on.clear();
+  off.clear();
+  for (const SectionCommand &c : cmds)
+    if (c.section == section)
+      (c.on ? on : off).push_back(c.position_m);
+}
+
 } // namespace
 
 TEST(RowMap, DefaultBands)
@@ -235,28 +258,82 @@ TEST(RowMap, CanopyEdgesWithinTheBins)
 
   // The sprayer switches at those edges, not at the bins': the 123 mm gap closes the valve
   // from 1.590 to 1.713 m.
-  SprayParams sp;
-  sp.valve_latency_ns = 0;
-  SprayPlanner planner(sp);
-  long next = LONG_MIN;
-  std::vector<SectionCommand> cmds;
-  for (double pos = 0; pos <= 4000; pos += 100) {
-    const auto got = planner.update(std::int64_t(pos * 1e6), pos / 1000.0,
-                                    take_final_slices(map, pos, next, {}));
-    cmds.insert(cmds.end(), got.begin(), got.end());
-  }
-  const auto rest = planner.finish();
-  cmds.insert(cmds.end(), rest.begin(), rest.end());
   std::vector<double> on, off;
-  for (const SectionCommand &c : cmds)
-    if (c.section == 1)
-      (c.on ? on : off).push_back(c.position_m);
+  sprayed(map, 1, on, off);
   ASSERT_EQ(on.size(), 2u);
   ASSERT_EQ(off.size(), 2u);
   EXPECT_NEAR(on[0], 1.020, px);
   EXPECT_NEAR(off[0], 1.590, px);
   EXPECT_NEAR(on[1], 1.713, px);
   EXPECT_NEAR(off[1], 2.262, px);
+}
+
+TEST(RowMap, ASliverOfCanopyEndingAStretchIsPresent)
+{
+  // A canopy fills band 2 (1.0-1.3 m) from 1.0 to 1.5 m, then enters it by 4 mm only for
+  // 40 mm more: bin 30 (1.50-1.55 m) holds 4 / 300 of the band over 40 of its 50 mm, a fill
+  // of 0.011, under min_fill. A speck of the same size stands alone at 2.50 m.
+  const RowMap map = build_of({{1000, 1500, 500, 1300, 2000},
+                               {1500, 1540, 500, 1004, 2000},
+                               {2500, 2540, 1000, 1004, 2000}},
+                              100, 4000);
+  const double px = 2.5e-3; // m
+  const RowMapCell end = map.cell(30, 2);
+  EXPECT_LT(end.fill, RowMapParams().min_fill);
+  EXPECT_GT(end.fill, 0.0);
+  EXPECT_TRUE(end.present); // it goes on from bin 29's canopy
+  EXPECT_NEAR(end.lo_m, 1.500, px);
+  EXPECT_NEAR(end.hi_m, 1.540, px);
+  EXPECT_NEAR(end.distance_m, 2.0, 0.001);
+  const RowMapCell speck = map.cell(50, 2);
+  EXPECT_GT(speck.fill, 0.0);
+  EXPECT_FALSE(speck.present); // no present neighbour: a speck, not canopy to spray
+  EXPECT_EQ(speck.distance_m, 0.0);
+  EXPECT_FALSE(map.cell(31, 2).present);
+
+  // The section closes where the sliver ends, not at the bin's edge before it.
+  std::vector<double> on, off;
+  sprayed(map, 2, on, off);
+  ASSERT_EQ(on.size(), 1u);
+  ASSERT_EQ(off.size(), 1u);
+  EXPECT_NEAR(on[0], 1.000, px);
+  EXPECT_NEAR(off[0], 1.540, px);
+}
+
+TEST(RowMap, AFrameOfOneTreeSpeaksForItsPartOfTheRowOnly)
+{
+  // Mode tree: each frame's mask holds only the tree whose centre is nearest the optical axis,
+  // its part of the row ending halfway across the gaps. A narrow tree (1.0-1.3 m) beside a
+  // wide one (1.4-2.4 m): at 1.40-1.52 m the rig is nearer the narrow one's centre, so the
+  // frames that see the wide one's first bins nearest the image centre do not hold it.
+  const std::vector<Wall> walls = {{1000, 1300, 500, 1450, 2000}, {1400, 2400, 700, 1300, 2200}};
+  const StereoGeometry g = camera();
+  const double inf = std::numeric_limits<double>::infinity();
+  RowMap with_span, without;
+  for (double pos = 0; pos <= 4000; pos += 100) {
+    const std::size_t i = std::abs(0.5 * (walls[0].x0 + walls[0].x1) - pos) <=
+                                  std::abs(0.5 * (walls[1].x0 + walls[1].x1) - pos)
+                              ? 0
+                              : 1;
+    const View v = cast(g, {walls[i]}, pos);
+    const double cut = 0.5 * (walls[0].x1 + walls[1].x0) - pos; // camera X of the cut
+    with_span.add_frame(v.mask, v.points, g, level_ground(), pos, cv::Vec3d(1, 0, 0),
+                        i == 0 ? -inf : cut, i == 0 ? cut : inf);
+    without.add_frame(v.mask, v.points, g, level_ground(), pos);
+  }
+  int lost_without = 0;
+  for (long b = 20; b < 48; ++b)
+    for (int k = 0; k < 4; ++k) {
+      SCOPED_TRACE("bin " + std::to_string(b) + " band " + std::to_string(k));
+      const double x0 = b * 50.0, b0 = 400 + 300 * k;
+      bool truth = false;
+      for (const Wall &w : walls)
+        truth = truth || (x0 >= w.x0 && x0 + 50 <= w.x1 && w.h1 > b0 && w.h0 < b0 + 300);
+      EXPECT_EQ(with_span.cell(b, k).present, truth);
+      lost_without += truth && !without.cell(b, k).present;
+    }
+  // The case is there: without the spans, the wide tree's first bins read empty.
+  EXPECT_GE(lost_without, 4);
 }
 
 TEST(RowMap, ACrownsTopIsPlacedAtItsOwnDepth)

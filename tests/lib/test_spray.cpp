@@ -35,8 +35,8 @@ struct Emitted {
 };
 
 // Drives the planner: a frame every frame_ns, the position from position(t); each frame the
-// bins whose centre the rig passed become final (as take_final_slices does), present where the
-// canopy is. Runs until t_end_ns, then finish().
+// bins the rig passed with the next bin's centre become final (as take_final_slices does),
+// present where the canopy is. Runs until t_end_ns, then finish().
 std::vector<Emitted> drive(SprayPlanner &planner, const Canopy &canopy,
                            const std::function<double(std::int64_t)> &position,
                            std::int64_t frame_ns, std::int64_t t_end_ns, double fill = 1.0)
@@ -46,7 +46,7 @@ std::vector<Emitted> drive(SprayPlanner &planner, const Canopy &canopy,
   for (std::int64_t t = 0; t <= t_end_ns; t += frame_ns) {
     const double p = position(t);
     std::vector<SpraySlice> slices;
-    while ((double(next_bin) + 0.5) * kBin <= p + 1e-12) {
+    while ((double(next_bin) + 1.5) * kBin <= p + 1e-12) {
       SpraySlice s;
       s.start_m = double(next_bin) * kBin;
       s.end_m = double(next_bin + 1) * kBin;

@@ -511,6 +511,8 @@ fill_canopy (GstTreeStereoCanopyMeta * c, GstBuffer * mask)
     c->segments[i].hi_clear_m = -0.004 + 0.2 * i;
     c->segments[i].trunk_m = i == 1 ? -0.35 : NAN;
   }
+  c->cut_lo_m = -0.85;
+  c->cut_hi_m = INFINITY;
 }
 
 static void
@@ -531,6 +533,7 @@ assert_canopy_figures_equal (const GstTreeStereoCanopyMeta * a, const GstTreeSte
   fail_unless_equals_int (a->n_canopy_points, b->n_canopy_points);
   fail_unless_equals_int (a->n_seam_pixels, b->n_seam_pixels);
   fail_unless_equals_int (a->n_stored_segments, b->n_stored_segments);
+  fail_unless (a->cut_lo_m == b->cut_lo_m && a->cut_hi_m == b->cut_hi_m);
   for (guint i = 0; i < a->n_stored_segments; i++) {
     fail_unless_equals_float (a->segments[i].lo_m, b->segments[i].lo_m);
     fail_unless_equals_float (a->segments[i].hi_m, b->segments[i].hi_m);
@@ -564,6 +567,9 @@ GST_START_TEST (test_canopy_meta)
   fail_unless (isnan (c->segments[GST_TREE_STEREO_MAX_SEGMENTS - 1].hi_clear_m));
   fail_unless (isnan (c->segments[0].trunk_m));
   fail_unless (isnan (c->segments[GST_TREE_STEREO_MAX_SEGMENTS - 1].trunk_m));
+  /* no neighbour cut the tree's part of the row until said (0 would be the optical axis) */
+  fail_unless (isinf (c->cut_lo_m) && c->cut_lo_m < 0);
+  fail_unless (isinf (c->cut_hi_m) && c->cut_hi_m > 0);
   fail_unless (gst_buffer_get_tree_stereo_canopy_meta (buf) == c);
   fail_unless (gst_meta_api_type_has_tag (GST_TREE_STEREO_CANOPY_META_API_TYPE,
           g_quark_from_static_string (GST_META_TAG_VIDEO_STR)));

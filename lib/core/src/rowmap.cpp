@@ -26,6 +26,9 @@ namespace {
 
 constexpr double kMmToM = 1e-3;
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
+// A cell under min_fill continues a present neighbour's canopy when both reach their common edge
+// within this share of a bin, and its canopy reaches further into it than that.
+constexpr double kTouchBins = 0.2;
 // Strips without points take the depth of the nearest strip with points within this many
 // strips; farther out, the canopy's median depth.
 constexpr int kStripReach = 6;
@@ -211,15 +214,36 @@ long RowMap::last_bin() const
 
 RowMapCell RowMap::cell(long bin, int band) const
 {
-  const auto it = bins_.find(bin);
-  if (it == bins_.end() || band < 0 || band >= n_bands())
+  const auto own = [&](long b) -> const RowMapCell * {
+    const auto it = bins_.find(b);
+    return it == bins_.end() ? nullptr : &it->second.cells[std::size_t(band)];
+  };
+  if (band < 0 || band >= n_bands())
     return RowMapCell();
-  return it->second.cells[std::size_t(band)];
+  const RowMapCell *c = own(bin);
+  if (!c)
+    return RowMapCell();
+  RowMapCell out = *c;
+  if (out.present || !(out.fill > 0))
+    return out;
+  // Canopy under min_fill is present where it goes on into a present neighbour across their
+  // common edge: the end of a cap that enters the band with a sliver.
+  const double bin_m = params_.bin_mm * kMmToM, tol = kTouchBins * bin_m;
+  const double lo_edge = double(bin) * bin_m, hi_edge = lo_edge + bin_m;
+  const RowMapCell *left = own(bin - 1), *right = own(bin + 1);
+  // (reaching more than the tolerance into the cell: a pixel's spill across the edge is not it)
+  out.present =
+      out.hi_m - out.lo_m > tol &&
+      ((left && left->present && out.lo_m <= lo_edge + tol && left->hi_m >= lo_edge - tol) ||
+       (right && right->present && out.hi_m >= hi_edge - tol && right->lo_m <= hi_edge + tol));
+  if (!out.present)
+    out.lo_m = out.hi_m = out.distance_m = 0;
+  return out;
 }
 
 void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &points,
                        const StereoGeometry &g, const GroundPlane &ground, double position_mm,
-                       const cv::Vec3d &row_direction)
+                       const cv::Vec3d &row_direction, double span_lo_mm, double span_hi_mm)
 {
   require_valid(g, "the row map", "RowMap::add_frame");
   if (mask.type() != CV_8U || mask.size() != g.view_size)
@@ -347,6 +371,11 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   const double view_lo = edge_at(-0.5, col_z.front(), true);
   const double view_hi = edge_at(W - 0.5, col_z.back(), false);
   const long b0 = long(std::floor(view_lo / bin)), b1 = long(std::floor(view_hi / bin));
+  // The span the mask speaks for, along the row (world x) at the canopy's depth.
+  const auto span_at = [&](double X) {
+    return std::isfinite(X) ? along_row(cv::Vec3d(X, 0, row_z), dir) + position_mm : X;
+  };
+  const double span_lo = span_at(span_lo_mm), span_hi = span_at(span_hi_mm);
   const long nbins = b1 - b0 + 1;
   if (nbins <= 0 || nbins > 1000000)
     return;
@@ -436,10 +465,14 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     if (lo < view_lo || hi > view_hi)
       continue;
     const double offset = std::abs(0.5 * (lo + hi) - (position_mm + row_z * dir[2])) / row_z;
+    const double centre = 0.5 * (lo + hi);
+    const bool in_span = !(centre < span_lo) && !(centre > span_hi);
     auto it = bins_.find(b + b0);
-    if (it != bins_.end() && !(offset < it->second.centre_offset))
+    if (it != bins_.end() && (in_span != it->second.in_span ? !in_span
+                                                             : !(offset < it->second.centre_offset)))
       continue;
     Bin out;
+    out.in_span = in_span;
     out.centre_offset = offset;
     out.cells.resize(std::size_t(nb));
     for (int k = 0; k < nb; ++k) {
@@ -451,7 +484,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       // Canopy placed at its own depth may outnumber the cell's pixels at the strip's.
       cell.fill = std::min(1.0, canopy[c] / total[c]);
       cell.present = canopy[c] > 0 && cell.fill >= params_.min_fill;
-      if (cell.present) {
+      if (canopy[c] > 0) { // also under min_fill: cell() may find it a present cell's end
         cell.distance_m =
             (cell_z[c].empty() ? min_z[c] : percentile(cell_z[c], 5.0)) * kMmToM;
         cell.lo_m = std::max(lo, lo_x[c]) * kMmToM;
@@ -585,7 +618,7 @@ cv::Mat RowMap::render(const std::vector<TreeRecord> &trees, const RowMapRenderP
   for (const auto &bn : bins_) {
     const int x0 = kMarginLeft + int(bn.first - b0) * r.px_per_bin;
     for (int k = 0; k < nb; ++k) {
-      const RowMapCell &c = bn.second.cells[std::size_t(k)];
+      const RowMapCell c = cell(bn.first, k);
       if (!c.seen)
         continue;
       const cv::Scalar fill = c.present ? colour(c.distance_m) : cv::Scalar(60, 60, 60);
@@ -728,7 +761,7 @@ void RowMap::draw_strip(cv::Mat &strip, double from_m, double to_m, double now_m
     if (it == bins_.end())
       continue;
     for (int k = 0; k < nb; ++k) {
-      const RowMapCell &c = it->second.cells[std::size_t(k)];
+      const RowMapCell c = cell(it->first, k);
       if (!c.seen)
         continue;
       const cv::Vec3b fill = c.present ? colour(c.distance_m) : cv::Vec3b(60, 60, 60);

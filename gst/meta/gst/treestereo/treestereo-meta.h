@@ -380,6 +380,10 @@ typedef struct {
  *   (MIN (@n_segments, #GST_TREE_STEREO_MAX_SEGMENTS): the leftmost ones)
  * @segments: the near row's segments along the row, left to right (treemetrics follows the
  *   trees along the row with them)
+ * @cut_lo_m: mode tree: X (m) where the selected tree's part of the row begins, halfway across
+ *   the gap to its left neighbour (or where joined crowns meet); -infinity: no neighbour. @view
+ *   holds no canopy left of it, whatever the view shows there (mode row: -infinity)
+ * @cut_hi_m: likewise where it ends (+infinity: no neighbour)
  *
  * Added by stereodepth when it decides the canopy in 3D. treemetrics measures @view instead of
  * the vegetation meta's left view, treeoverlay outlines it.
@@ -403,6 +407,8 @@ typedef struct {
   guint n_seam_pixels;
   guint n_stored_segments;
   GstTreeStereoRowSegment segments[GST_TREE_STEREO_MAX_SEGMENTS];
+  gdouble cut_lo_m;
+  gdouble cut_hi_m;
 } GstTreeStereoCanopyMeta;
 
 GType gst_tree_stereo_canopy_meta_api_get_type (void);
@@ -411,7 +417,7 @@ const GstMetaInfo *gst_tree_stereo_canopy_meta_get_info (void);
 #define GST_TREE_STEREO_CANOPY_META_INFO (gst_tree_stereo_canopy_meta_get_info ())
 
 /* Adds a canopy meta with all figures zero (an empty view; the segments' clearances NaN,
- * unknown) in @mode; the caller fills it in. */
+ * unknown; the cuts infinite, none) in @mode; the caller fills it in. */
 GstTreeStereoCanopyMeta *gst_buffer_add_tree_stereo_canopy_meta (GstBuffer *buffer,
     GstTreeStereoCanopyMode mode);
 #define gst_buffer_get_tree_stereo_canopy_meta(b) \

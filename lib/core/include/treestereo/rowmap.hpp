@@ -31,14 +31,24 @@
 // place along the row (along_row()), its height the ground plane's height of the 3D point. A
 // cell (bin, band) of that frame:
 //  - fill: the share of the cell's pixels (those the view has of it) that are canopy;
-//  - present: fill >= min_fill;
 //  - lo_m / hi_m: the world x of its leftmost and rightmost canopy pixel columns;
 //  - distance_m: the near face, the 5th percentile of the depths of the points in the cell, or,
 //    without points, the smallest column depth of its canopy pixels.
+//  - present: fill >= min_fill; or canopy under it that goes on into a present neighbour's
+//    (on either side: both reach their common edge within a fifth of a bin) and reaches more
+//    than a fifth of a bin into the cell. That is the end of a crown that enters the band with
+//    a sliver of its cap: a round cap stays within min_fill of the band's edge over some
+//    centimetres along the row (docs/results.md "Where the drive-by's remaining misses come
+//    from"). min_fill keeps specks out, not the canopy's own ends. cell() decides it, so a
+//    bin's presence is known once its neighbours are final too.
 // Each bin (all bands) is taken from the frame that sees the bin's centre nearest the image
 // centre, among the frames that see the whole bin: there a depth error moves a pixel least
 // along the row (X = Z * (u - cx) / fx, and (u - cx) is smallest), the crown's side is least
 // foreshortened into its front, and the bin is far from the image edge, where the canopy is cut.
+// A frame whose mask holds one tree alone (stereodepth's mode tree: the canopy between the cuts
+// halfway to its neighbours) speaks for its bins outside that span only until a frame whose span
+// holds them comes: a neighbour's canopy in view is not in its mask, and the bin would read
+// empty.
 // A band the chosen frame does not see (above or below the image) is unseen: present = false.
 #pragma once
 
@@ -49,6 +59,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -77,7 +88,7 @@ GroundPlane rig_ground(const StereoGeometry &geometry, double camera_height_mm, 
 
 struct RowMapCell {
   bool seen = false;     // a frame saw this cell
-  bool present = false;  // canopy in it (fill >= min_fill)
+  bool present = false;  // canopy in it (fill >= min_fill, or a present neighbour's end)
   double distance_m = 0; // near-face depth, when present
   double fill = 0;       // share of the cell covered by canopy (0..1)
   // Where along the row its canopy pixels lie (world x, m), when present: a sprayer's section
@@ -110,11 +121,15 @@ public:
   // Adds one frame. `canopy_mask`: CV_8U of the view size, non-zero = canopy (the left
   // rectified view); `points`: the canopy's 3D points (invalid ones and those off the mask are
   // ignored); `ground`: must be found; `row_direction`: the row's direction in the rectified-left
-  // frame (RowDirection::direction(); a point's world x is position_mm + along_row()). Throws
+  // frame (RowDirection::direction(); a point's world x is position_mm + along_row());
+  // `span_lo_mm`, `span_hi_mm`: the X range (rectified-left frame, at the canopy's depth) the
+  // mask speaks for (CanopyResult::cut_lo_mm, cut_hi_mm; infinite: all the view). Throws
   // std::runtime_error on inconsistent input.
   void add_frame(const cv::Mat &canopy_mask, const std::vector<PixelPoint> &points,
                  const StereoGeometry &geometry, const GroundPlane &ground, double position_mm,
-                 const cv::Vec3d &row_direction = cv::Vec3d(1, 0, 0));
+                 const cv::Vec3d &row_direction = cv::Vec3d(1, 0, 0),
+                 double span_lo_mm = -std::numeric_limits<double>::infinity(),
+                 double span_hi_mm = std::numeric_limits<double>::infinity());
 
   const RowMapParams &params() const { return params_; }
   const std::vector<double> &band_edges_mm() const { return edges_; }
@@ -124,6 +139,7 @@ public:
   long first_bin() const;
   long last_bin() const;
   // The cell of bin b (index as above), band k (0 = lowest); an unseen default cell outside.
+  // Its presence depends on bins b - 1 and b + 1 (see above).
   RowMapCell cell(long bin, int band) const;
 
   // One row per bin (first_bin() to last_bin()) and band, under kCsvHeader: position_m (the
@@ -172,6 +188,7 @@ public:
 
 private:
   struct Bin {
+    bool in_span = false;     // the frame's mask spoke for the bin (see add_frame)
     double centre_offset = 0; // |slope of the bin centre's ray| in the frame it came from
     std::vector<RowMapCell> cells;
   };

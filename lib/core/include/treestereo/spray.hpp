@@ -83,8 +83,9 @@ std::vector<SliceSection> sections_of(const std::vector<RowMapCell> &cells,
                                       const std::vector<SectionRange> &ranges);
 
 // The bins of `map` final at position_mm and not yet taken (`next_bin`: the first bin not yet
-// taken, updated; start it at LONG_MIN) as slices. A bin is final once the rig has passed its
-// centre: later frames see it further from the image centre, so the map keeps it as it is.
+// taken, updated; start it at LONG_MIN) as slices. A bin is final once the rig has passed the
+// next bin's centre: later frames see both further from the image centre, so the map keeps
+// them as they are, and a cell's presence may depend on its neighbours (RowMap::cell()).
 std::vector<SpraySlice> take_final_slices(const RowMap &map, double position_mm, long &next_bin,
                                           const std::vector<SectionRange> &ranges);
 
