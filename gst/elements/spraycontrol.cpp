@@ -41,6 +41,7 @@
 #include <gst/base/gstbasetransform.h>
 
 #include <climits>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -455,18 +456,26 @@ static gboolean gst_spray_control_sink_event(GstBaseTransform *trans, GstEvent *
     // The end of the data, not a camera gap: every planned command, no fallback.
     std::vector<SectionCommand> commands;
     bool post = false;
-    {
+    const bool ok = treestereo::gst::guarded(GST_ELEMENT(self), false, [&] {
       std::lock_guard<std::mutex> lock(st->plan_lock);
       unschedule_hold(st->plan);
+      // the map's bins the rig did not pass count too: no later frame will change them
       if (st->plan.planner)
-        commands = st->plan.planner->finish();
+        commands = st->plan.planner->finish(
+            st->plan.map ? take_final_slices(*st->plan.map, std::numeric_limits<double>::infinity(),
+                                             st->plan.next_bin, st->plan.ranges)
+                         : std::vector<SpraySlice>());
       post = st->plan.post_messages;
       if (st->plan.keep_planned)
         st->plan.planned.insert(st->plan.planned.end(), commands.begin(), commands.end());
-    }
-    post_commands(self, commands, post, false);
-    if (!write_timeline(self))
+      return true;
+    });
+    if (ok)
+      post_commands(self, commands, post, false);
+    if (!ok || !write_timeline(self)) { // the event is ours: unused, it goes
+      gst_event_unref(event);
       return FALSE;
+    }
   } else if (GST_EVENT_TYPE(event) == GST_EVENT_STREAM_START) {
     std::lock_guard<std::mutex> lock(st->plan_lock);
     unschedule_hold(st->plan);

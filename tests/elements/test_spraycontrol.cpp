@@ -232,6 +232,23 @@ GST_START_TEST(test_timing_two_speeds_two_latencies)
 }
 GST_END_TEST;
 
+GST_START_TEST(test_eos_plans_the_canopy_the_rig_did_not_pass)
+{
+  // The data ends with the rig at 2.2 m: the canopy's end at 2.6 m is in view (to 3.2 m), in
+  // bins the rig has not passed. At EOS they are planned too: the valve closes at 2.6 m, timed
+  // with the last speed.
+  const Canopy canopy = {{2.0, 2.6}};
+  const auto c = drive("", canopy, 1.0, 2.2);
+  fail_unless_equals_int(int(c.size()), 2);
+  fail_unless(c[0].on && std::abs(c[0].position_m - 2.0) <= kHalfColumn);
+  fail_unless(!c[1].on && std::abs(c[1].position_m - 2.6) <= kHalfColumn, "off at %f",
+              c[1].position_m);
+  const gint64 off_at = expected_at(c[1].position_m, 1.5, 1.0, 160 * GST_MSECOND);
+  fail_unless(std::llabs(c[1].at_ns - off_at) <= 2, "off at %" G_GINT64_FORMAT " expected %"
+              G_GINT64_FORMAT, c[1].at_ns, off_at);
+}
+GST_END_TEST;
+
 GST_START_TEST(test_min_gap_and_min_canopy)
 {
   // A 5 cm gap stays sprayed (min-gap 7.5 cm), a 10 cm gap closes the valve, a 5 cm twig of
@@ -532,6 +549,7 @@ static Suite *spraycontrol_suite(void)
   tcase_add_test(tc, test_missing_timestamp_is_a_warning);
   tcase_add_test(tc, test_section_message_round_trip);
   tcase_add_test(tc, test_timeline_picture_at_eos);
+  tcase_add_test(tc, test_eos_plans_the_canopy_the_rig_did_not_pass);
   return s;
 }
 

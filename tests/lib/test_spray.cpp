@@ -379,6 +379,42 @@ TEST(Spray, ParamsValidated)
   EXPECT_THROW(SprayPlanner{p}, BadSettings);
 }
 
+TEST(Spray, TheEndOfDataPlansTheBinsNotPassed)
+{
+  // The rig stops at 0.3 m: canopy from 0.2 to 0.5 m is in the map, its bins from 0.25 m on not
+  // final yet. finish() with them plans it whole, timed with the last speed (1 m/s).
+  SprayPlanner planner(one_section());
+  const auto bins = [](int from, int to) {
+    std::vector<SpraySlice> out;
+    for (int b = from; b < to; ++b) {
+      SpraySlice s;
+      s.start_m = b * kBin;
+      s.end_m = (b + 1) * kBin;
+      SliceSection c;
+      c.present = b >= 4 && b < 10;
+      c.fill = c.width_share = c.present ? 1 : 0;
+      s.sections = {c};
+      out.push_back(s);
+    }
+    return out;
+  };
+  planner.update(0, 0.0, {});
+  planner.update(300 * kMs, 0.3, bins(0, 5));
+  const std::vector<SectionCommand> c = planner.finish(bins(5, 12));
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_TRUE(c[0].on);
+  EXPECT_NEAR(c[0].position_m, 0.2, 1e-9);
+  EXPECT_FALSE(c[1].on);
+  EXPECT_NEAR(c[1].position_m, 0.5, 1e-9);
+  EXPECT_NEAR(double(c[1].at_ns), 300e6 + (0.5 + 1.5 - 0.3) * 1e9 - 160e6, 2);
+  // without them the canopy known is 50 mm, under min_canopy: none of it would be sprayed
+  SprayPlanner cut(one_section());
+  cut.update(0, 0.0, {});
+  cut.update(300 * kMs, 0.3, bins(0, 5));
+  EXPECT_TRUE(cut.finish().empty());
+  expect_typed_error<BadInput>([&] { planner.finish({SpraySlice()}); }, "section count");
+}
+
 TEST(Spray, ErrorsAreTypedAndNameTheProblem)
 {
   SprayParams p;

@@ -273,38 +273,18 @@ std::vector<SectionCommand> SprayPlanner::due(std::int64_t horizon_ns, bool all)
   return out;
 }
 
-std::vector<SectionCommand> SprayPlanner::update(std::int64_t running_ns, double position_m,
-                                                 const std::vector<SpraySlice> &slices)
+void SprayPlanner::check(const std::vector<SpraySlice> &slices) const
 {
-  if (!std::isfinite(position_m))
-    throw BadInput("The rig's position is not finite: the spray planner needs a finite "
-                   "position along the row.",
-                   "SprayPlanner::update: position_m = " + std::to_string(position_m));
   for (const SpraySlice &sl : slices)
     if (int(sl.sections.size()) != p_.n_sections)
       throw BadInput("A row map slice does not have the spray planner's section count: give "
                      "slices with one entry per nozzle section.",
-                     "SprayPlanner::update: a slice with " + std::to_string(sl.sections.size()) +
+                     "SprayPlanner: a slice with " + std::to_string(sl.sections.size()) +
                          " sections, the planner has " + std::to_string(p_.n_sections));
-  if (fallback_) {
-    // Data again: control resumes from the state the fallback left the valves in.
-    fallback_ = false;
-    for (std::size_t k = 0; k < sections_.size(); ++k) {
-      Section fresh;
-      fresh.on = valve_[k].on;
-      fresh.rate = valve_[k].rate;
-      sections_[k] = fresh;
-    }
-    have_frontier_ = false;
-  }
-  // A frame not later than the last adds no speed sample (its slices still count).
-  if (samples_.empty() || running_ns > samples_.back().t) {
-    frame_ns_ = samples_.empty() ? 0 : running_ns - samples_.back().t;
-    samples_.push_back({running_ns, position_m});
-    while (samples_.size() > 2 && running_ns - samples_[1].t > p_.speed_window_ns)
-      samples_.pop_front();
-  }
+}
 
+void SprayPlanner::plan(const std::vector<SpraySlice> &slices)
+{
   for (const SpraySlice &sl : slices) {
     if (have_frontier_ && sl.end_m <= frontier_ + kEps)
       continue; // already planned
@@ -333,6 +313,36 @@ std::vector<SectionCommand> SprayPlanner::update(std::int64_t running_ns, double
     frontier_ = sl.end_m;
     have_frontier_ = true;
   }
+}
+
+std::vector<SectionCommand> SprayPlanner::update(std::int64_t running_ns, double position_m,
+                                                 const std::vector<SpraySlice> &slices)
+{
+  if (!std::isfinite(position_m))
+    throw BadInput("The rig's position is not finite: the spray planner needs a finite "
+                   "position along the row.",
+                   "SprayPlanner::update: position_m = " + std::to_string(position_m));
+  check(slices);
+  if (fallback_) {
+    // Data again: control resumes from the state the fallback left the valves in.
+    fallback_ = false;
+    for (std::size_t k = 0; k < sections_.size(); ++k) {
+      Section fresh;
+      fresh.on = valve_[k].on;
+      fresh.rate = valve_[k].rate;
+      sections_[k] = fresh;
+    }
+    have_frontier_ = false;
+  }
+  // A frame not later than the last adds no speed sample (its slices still count).
+  if (samples_.empty() || running_ns > samples_.back().t) {
+    frame_ns_ = samples_.empty() ? 0 : running_ns - samples_.back().t;
+    samples_.push_back({running_ns, position_m});
+    while (samples_.size() > 2 && running_ns - samples_[1].t > p_.speed_window_ns)
+      samples_.pop_front();
+  }
+
+  plan(slices);
   return due(running_ns + frame_ns_, false);
 }
 
@@ -363,8 +373,11 @@ std::vector<SectionCommand> SprayPlanner::tick(std::int64_t running_ns)
   return out;
 }
 
-std::vector<SectionCommand> SprayPlanner::finish()
+std::vector<SectionCommand> SprayPlanner::finish(const std::vector<SpraySlice> &rest)
 {
+  check(rest);
+  if (!fallback_)
+    plan(rest);
   return due(0, true);
 }
 

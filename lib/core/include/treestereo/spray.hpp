@@ -113,8 +113,10 @@ public:
                                      const std::vector<SpraySlice> &slices);
   // No frame: at running_ns past the last data by hold_time_ns the fallback commands (once).
   std::vector<SectionCommand> tick(std::int64_t running_ns);
-  // End of data: every planned command, timed with the last speed.
-  std::vector<SectionCommand> finish();
+  // End of data: every planned command, timed with the last speed; `rest` first: the map's bins
+  // not final yet (take_final_slices() at an infinite position), which no later frame will
+  // change.
+  std::vector<SectionCommand> finish(const std::vector<SpraySlice> &rest = {});
 
   bool in_fallback() const { return fallback_; }
   bool has_data() const { return !samples_.empty(); }
@@ -143,6 +145,8 @@ private:
     double gap_start = 0;
   };
   double rate_of(const SliceSection &s) const;
+  void check(const std::vector<SpraySlice> &slices) const; // throws BadInput
+  void plan(const std::vector<SpraySlice> &slices);
   void absent(int k, double x_start, double x_end);
   void present(int k, double x_start, double x_end, double rate);
   std::vector<SectionCommand> due(std::int64_t horizon_ns, bool all);
