@@ -163,9 +163,10 @@ std::vector<TreeRecord> trees()
   return out;
 }
 
-// The commands of section `section` for `map` (frames every 100 mm, no valve latency): the
-// positions where it opens and closes.
-void sprayed(const RowMap &map, int section, std::vector<double> &on, std::vector<double> &off)
+// Section `section`'s commands for `map` (frames every 100 mm, no valve latency) open and close
+// it at `stretches` (m, to a pixel).
+void expect_sprayed(const RowMap &map, int section,
+                    const std::vector<std::pair<double, double>> &stretches)
 {
   SprayParams sp;
   sp.valve_latency_ns = 0;
@@ -179,11 +180,17 @@ void sprayed(const RowMap &map, int section, std::vector<double> &on, std::vecto
   }
   const auto rest = planner.finish();
   cmds.insert(cmds.end(), rest.begin(), rest.end());
-  on.clear();
-  off.clear();
+  std::vector<double> on, off;
   for (const SectionCommand &c : cmds)
     if (c.section == section)
       (c.on ? on : off).push_back(c.position_m);
+  ASSERT_EQ(on.size(), stretches.size());
+  ASSERT_EQ(off.size(), stretches.size());
+  const double px = 2.5e-3; // m
+  for (std::size_t i = 0; i < stretches.size(); ++i) {
+    EXPECT_NEAR(on[i], stretches[i].first, px);
+    EXPECT_NEAR(off[i], stretches[i].second, px);
+  }
 }
 
 } // namespace
@@ -258,14 +265,7 @@ TEST(RowMap, CanopyEdgesWithinTheBins)
 
   // The sprayer switches at those edges, not at the bins': the 123 mm gap closes the valve
   // from 1.590 to 1.713 m.
-  std::vector<double> on, off;
-  sprayed(map, 1, on, off);
-  ASSERT_EQ(on.size(), 2u);
-  ASSERT_EQ(off.size(), 2u);
-  EXPECT_NEAR(on[0], 1.020, px);
-  EXPECT_NEAR(off[0], 1.590, px);
-  EXPECT_NEAR(on[1], 1.713, px);
-  EXPECT_NEAR(off[1], 2.262, px);
+  expect_sprayed(map, 1, {{1.020, 1.590}, {1.713, 2.262}});
 }
 
 TEST(RowMap, ASliverOfCanopyEndingAStretchIsPresent)
@@ -292,12 +292,7 @@ TEST(RowMap, ASliverOfCanopyEndingAStretchIsPresent)
   EXPECT_FALSE(map.cell(31, 2).present);
 
   // The section closes where the sliver ends, not at the bin's edge before it.
-  std::vector<double> on, off;
-  sprayed(map, 2, on, off);
-  ASSERT_EQ(on.size(), 1u);
-  ASSERT_EQ(off.size(), 1u);
-  EXPECT_NEAR(on[0], 1.000, px);
-  EXPECT_NEAR(off[0], 1.540, px);
+  expect_sprayed(map, 2, {{1.000, 1.540}});
 }
 
 TEST(RowMap, AFrameOfOneTreeSpeaksForItsPartOfTheRowOnly)
