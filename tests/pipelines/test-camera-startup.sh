@@ -70,9 +70,20 @@ fi
 # fault. The holder takes the camera first and lets go once treecamerasrc has called it lost and
 # has been refused again (a `retry` message), or after 60 s, however slowly either starts (a
 # sanitized build on a loaded machine takes seconds).
+# until_in PATTERN FILE TENTHS [PID]: waits until FILE holds PATTERN, for at most TENTHS tenths
+# of a second, or until process PID has ended.
+until_in() {
+  local i
+  for ((i = 0; i < $3; i++)); do
+    grep -q "$1" "$2" && return 0
+    [ -n "${4:-}" ] && ! kill -0 "$4" 2>/dev/null && return 1
+    sleep 0.1
+  done
+  return 1
+}
 gst-launch-1.0 -e aravissrc camera-name=127.0.0.1 ! fakesink >"$tmp/holder.log" 2>&1 &
 holder=$!
-for _ in $(seq 1 200); do grep -q "Setting pipeline to PLAYING" "$tmp/holder.log" && break; sleep 0.1; done
+until_in "Setting pipeline to PLAYING" "$tmp/holder.log" 200
 sleep 0.5
 : >"$tmp/debug.log"
 GST_DEBUG=treecamerasrc:5 GST_DEBUG_NO_COLOR=1 GST_DEBUG_FILE="$tmp/debug.log" \
@@ -80,11 +91,7 @@ GST_DEBUG=treecamerasrc:5 GST_DEBUG_NO_COLOR=1 GST_DEBUG_FILE="$tmp/debug.log" \
   caps=video/x-bayer,framerate=10/1 timeout=$timeout_ms reconnect-interval=250 \
   ! fakesink num-buffers=5 >"$tmp/out.log" 2>&1 &
 held=$!
-for _ in $(seq 1 600); do
-  grep -q 'state=(string)retry' "$tmp/out.log" && break
-  kill -0 "$held" 2>/dev/null || break
-  sleep 0.1
-done
+until_in 'state=(string)retry' "$tmp/out.log" 600 "$held"
 kill -INT "$holder" 2>/dev/null
 wait "$held"
 rc=$?
