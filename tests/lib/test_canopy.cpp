@@ -230,6 +230,46 @@ TEST(Canopy, GreenWallTwoMetresBehind)
   EXPECT_FALSE(select_canopy(r.vegetation, pts, s.g, p).present);
 }
 
+TEST(Canopy, ALeafClusterPeekingOutBehindTheFrontOneIsCanopy)
+{
+  // A crown of three clusters before a wall 3.5 m away: the front one (1.8 m at its front), and
+  // two 0.5 m behind it, one out to the left and one peeking out on the right by a sliver. Seen
+  // from the side, that sliver is where the crown reaches farthest. No sample lies on it (it is
+  // a few samples' spacing wide, and matches are sparse there): its nearest canopy sample is
+  // the front cluster's, whose disparity misses it by 5 px; the wall's misses it by 6.
+  Scene s;
+  s.wall_z = 4500;
+  s.spheres.push_back({cv::Vec3d(0, 0, 2000), 350});
+  s.spheres.push_back({cv::Vec3d(172, 40, 2450), 300});
+  s.spheres.push_back({cv::Vec3d(-420, -60, 2450), 300});
+  const Rendered r = render(s);
+  const cv::Mat sliver = object_mask(r.objects, 1);
+  std::vector<PixelPoint> pts;
+  for (const PixelPoint &q : grid_points(r.objects, r.points, 8))
+    if (r.objects.at<int>(cv::Point(q.px)) != 1)
+      pts.push_back(q);
+  const int n_sliver = cv::countNonZero(sliver);
+  ASSERT_GT(n_sliver, 800);
+  // The sliver's widest row is at least two sample spacings wide.
+  int widest = 0;
+  for (int y = 0; y < sliver.rows; ++y)
+    widest = std::max(widest, cv::countNonZero(sliver.row(y)));
+  ASSERT_GE(widest, 16);
+
+  CanopyParams p;
+  const CanopyResult c = select_canopy(r.vegetation, pts, s.g, p, r.left, r.right);
+  ASSERT_TRUE(c.present);
+  // Most of the sliver is taken (not its outer rim, where the seam test's windows reach over
+  // the wall), and the wall stays out.
+  EXPECT_GT(cv::countNonZero(c.silhouette.mask & sliver), 0.55 * n_sliver);
+  const cv::Mat wall = object_mask(r.objects, -1);
+  cv::Mat crown = ~wall & r.vegetation, beside;
+  cv::dilate(crown, beside, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7)));
+  EXPECT_LT(cv::countNonZero(c.silhouette.mask & wall & ~beside), 0.002 * cv::countNonZero(crown));
+  // The crown's right edge within 5 px of the truth's (16 px short without the sliver).
+  EXPECT_LE(std::abs(cv::boundingRect(crown).br().x - c.silhouette.bbox.br().x), 5);
+}
+
 TEST(Canopy, StandingOnAGreenGroundPlane)
 {
   Scene s;

@@ -467,6 +467,41 @@ TEST(RowMap, NearestTheCentreWins)
   EXPECT_NEAR(map.cell(60, 1).distance_m, 1.9, 0.001);
 }
 
+TEST(RowMap, TwoFramesThatSeeABandsCanopyOutvoteTheNearest)
+{
+  // A canopy at 1.60-1.65 m (bin 32, in the gap) that the frame nearest it (at 1.625 m) does not
+  // see: one other frame seeing it is not enough, two are.
+  const StereoGeometry g = camera();
+  std::vector<Wall> with = kWalls;
+  with.push_back({1600, 1650, 500, 1500, 2000});
+  RowMap map;
+  auto add = [&](const std::vector<Wall> &walls, double pos) {
+    const View v = cast(g, walls, pos);
+    map.add_frame(v.mask, v.points, g, level_ground(), pos);
+  };
+  add(with, 1500);
+  add(kWalls, 1625);
+  EXPECT_FALSE(map.cell(32, 1).present);
+  add(with, 1750);
+  for (int k = 1; k < 4; ++k) {
+    SCOPED_TRACE("band " + std::to_string(k));
+    const RowMapCell c = map.cell(32, k);
+    EXPECT_TRUE(c.present);
+    EXPECT_NEAR(c.lo_m, 1.600, 2.5e-3);
+    EXPECT_NEAR(c.hi_m, 1.650, 2.5e-3);
+    EXPECT_NEAR(c.distance_m, 2.0, 0.001);
+  }
+  EXPECT_FALSE(map.cell(33, 1).present);
+  // Which frame came first does not matter.
+  RowMap later;
+  for (const auto &[walls, pos] : std::vector<std::pair<std::vector<Wall>, double>>{
+           {kWalls, 1625}, {with, 1750}, {with, 1500}}) {
+    const View v = cast(g, walls, pos);
+    later.add_frame(v.mask, v.points, g, level_ground(), pos);
+  }
+  EXPECT_TRUE(later.cell(32, 1).present);
+}
+
 TEST(RowMap, CsvHeaderAndRows)
 {
   const RowMap map = build();

@@ -862,17 +862,18 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     // clear match.
     // `in_at` (when given) receives the right-view window (column in R, row) of the best d_in
     // score.
+    // With `in_only` the d_out score is not computed (s_out stays -2).
     auto seam_scores = [&](int x, int y, float d_in, float d_out, double &s_in, double &s_out,
-                           cv::Point *in_at = nullptr) {
+                           cv::Point *in_at = nullptr, bool in_only = false) {
       s_in = s_out = -2;
       static const int shifts[3][2] = {{0, 0}, {0, -1}, {0, 1}};
-      const bool in_near = d_in > d_out;
+      const bool in_near = in_only || d_in > d_out;
       for (const auto &sh : shifts) {
         const int px = x + sh[0] * h, py = y + sh[1] * h;
         if (px - h < 0 || px + h >= L.cols || py - h < 0 || py + h >= L.rows ||
             !detail::centred_patch(L, px, py, h, patch))
           continue;
-        for (int k = 0; k < 2; ++k) {
+        for (int k = 0; k < (in_only ? 1 : 2); ++k) {
           double &best = k == 0 ? s_in : s_out;
           const int xr_c = int(std::lround(px + box.x - (k == 0 ? d_in : d_out))) - rx0;
           for (int dx = -2; dx <= 2; ++dx) {
@@ -979,6 +980,13 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       cv::distanceTransform(~other_cells, d_to_other, cv::DIST_L2, 3);
       cv::distanceTransform(~canopy_cells, d_to_canopy, cv::DIST_L2, 3);
       const float band = float(std::max(2.0, kSeamBandSpacings * spacing / f));
+      // The canopy samples' range of disparities (full-size px).
+      float din_lo = std::numeric_limits<float>::infinity(), din_hi = 0;
+      for (float d : disp_in)
+        if (d > 0) {
+          din_lo = std::min(din_lo, d + 2.0f);
+          din_hi = std::max(din_hi, d);
+        }
       for (int y = 0; y < ss.height; ++y) {
         const float *di = d_in.ptr<float>(y);
         const float *to_other = d_to_other.ptr<float>(y), *to_canopy = d_to_canopy.ptr<float>(y);
@@ -1049,6 +1057,24 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
           // surface's own left pixel, at its disparity, then matches it at least as well.
           if (in && canopy_nearer && d_far > 0 && in_at.x >= 0 && back_score(in_at, d_far) >= s_in)
             in = false;
+          // A leaf cluster behind the one whose sample is nearest may show here (a sliver
+          // beside the nearer cluster's edge, where no sample lies): before the pixel goes, the
+          // canopy is tried over its samples' range of disparities, in steps the +-2 px search
+          // covers, unless the farther surface matches clearly.
+          if (!in && canopy_nearer && s_far < kSeamClearScore) {
+            for (float d = din_lo; d <= din_hi + 2.0f; d += 5.0f) {
+              if (std::abs(d - dv_in) <= 2.0f || (d_far > 0 && std::abs(d - d_far) <= 3.0f))
+                continue;
+              double a, b;
+              cv::Point at(-1, -1);
+              seam_scores(x * f, y * f, d, d, a, b, &at, true);
+              if (a >= kSeamMinScore && a > s_far &&
+                  !(d_far > 0 && at.x >= 0 && back_score(at, d_far) >= a)) {
+                in = true;
+                break;
+              }
+            }
+          }
           m[x] = in ? 255 : 0;
           ++r.n_seam_pixels;
         }

@@ -29,6 +29,13 @@ constexpr double kDeg = 3.14159265358979323846 / 180.0;
 // A cell under min_fill continues a present neighbour's canopy when both reach their common edge
 // within this share of a bin, and its canopy reaches further into it than that.
 constexpr double kTouchBins = 0.2;
+// A cell the nearest frame reads empty is present when at least this many frames whose span
+// holds its bin, and that see the bin's centre within kVoteSlope of the optical axis, saw it
+// present (add_frame). Within that slope a pixel placed 100 mm off in depth moves 10 mm along
+// the row, a fifth of a bin; farther out a frame's canopy edges land in the bins beside theirs
+// (the depth of a strip of columns is one depth).
+constexpr int kVotes = 2;
+constexpr double kVoteSlope = 0.1;
 // Strips without points take the depth of the nearest strip with points within this many
 // strips; farther out, the canopy's median depth.
 constexpr int kStripReach = 6;
@@ -459,7 +466,8 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       cell_z[std::size_t(b * nb + k)].push_back(p.z);
   }
 
-  // Each bin the view holds whole, taken when this frame sees it nearer the image centre.
+  // Each bin the view holds whole: taken when this frame sees it nearer the image centre, and
+  // each band's presence counted (kVotes).
   for (long b = 0; b < nbins; ++b) {
     const double lo = double(b + b0) * bin, hi = lo + bin;
     if (lo < view_lo || hi > view_hi)
@@ -468,16 +476,12 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     const double centre = 0.5 * (lo + hi);
     const bool in_span = !(centre < span_lo) && !(centre > span_hi);
     auto it = bins_.find(b + b0);
-    if (it != bins_.end() && (in_span != it->second.in_span ? !in_span
-                                                             : !(offset < it->second.centre_offset)))
-      continue;
-    Bin out;
-    out.in_span = in_span;
-    out.centre_offset = offset;
-    out.cells.resize(std::size_t(nb));
+    const bool keep_old = it != bins_.end() && (in_span != it->second.in_span ? !in_span
+                                                             : !(offset < it->second.centre_offset));
+    std::vector<RowMapCell> seen(static_cast<std::size_t>(nb));
     for (int k = 0; k < nb; ++k) {
       const std::size_t c = std::size_t(b * nb + k);
-      RowMapCell &cell = out.cells[std::size_t(k)];
+      RowMapCell &cell = seen[std::size_t(k)];
       cell.seen = total[c] > 0;
       if (!cell.seen)
         continue;
@@ -491,7 +495,31 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         cell.hi_m = std::min(hi, hi_x[c]) * kMmToM;
       }
     }
-    bins_[b + b0] = std::move(out);
+    Bin &out = bins_[b + b0];
+    if (out.nearest.empty()) {
+      out.nearest.resize(std::size_t(nb));
+      out.voted.resize(std::size_t(nb));
+      out.voted_offset.assign(std::size_t(nb), std::numeric_limits<double>::infinity());
+      out.votes.assign(std::size_t(nb), 0);
+    }
+    if (in_span && offset <= kVoteSlope)
+      for (std::size_t k = 0; k < std::size_t(nb); ++k)
+        if (seen[k].present) {
+          ++out.votes[k];
+          if (offset < out.voted_offset[k]) {
+            out.voted_offset[k] = offset;
+            out.voted[k] = seen[k];
+          }
+        }
+    if (!keep_old) {
+      out.in_span = in_span;
+      out.centre_offset = offset;
+      out.nearest = std::move(seen);
+    }
+    out.cells.resize(std::size_t(nb));
+    for (std::size_t k = 0; k < std::size_t(nb); ++k)
+      out.cells[k] = !out.nearest[k].present && out.votes[k] >= kVotes ? out.voted[k]
+                                                                       : out.nearest[k];
   }
 }
 

@@ -19,8 +19,10 @@
 //     else (the next row behind, a neighbour, the grass) share a region, each pixel goes to the
 //     nearest sample's class, and along that seam each pixel is tested again by
 //     photo-consistency: its patch is compared with the right view at the canopy's disparity
-//     and at the other class's disparity, and the better one wins. Pixels that no sample
-//     reaches (1.5 sample spacings) are canopy only where the canopy encloses them.
+//     and at the other class's disparity, and the better one wins (a pixel the canopy loses is
+//     tried over the canopy's range of disparities too: a cluster behind the nearest one, peeking
+//     out beside it where no sample lies). Pixels that no sample reaches (1.5 sample spacings)
+//     are canopy only where the canopy encloses them.
 //
 // No shape model and no ground truth: only the views, the colour mask and the 3D points.
 #pragma once

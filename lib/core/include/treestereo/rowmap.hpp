@@ -49,6 +49,12 @@
 // halfway to its neighbours) speaks for its bins outside that span only until a frame whose span
 // holds them comes: a neighbour's canopy in view is not in its mask, and the bin would read
 // empty.
+// A band the nearest frame reads empty is present when two frames whose span holds the bin saw
+// it present (the nearest of them gives the cell): a cap a few millimetres into a band is at
+// the edge of what one frame resolves, and the nearest frame alone missed whole stretches of the
+// top band that the frames beside it saw (docs/results.md "Two frames that see a band's canopy
+// outvote the nearest"). One frame is not enough: a false canopy one frame sees at its view's
+// edge stays out.
 // A band the chosen frame does not see (above or below the image) is unseen: present = false.
 #pragma once
 
@@ -188,9 +194,13 @@ public:
 
 private:
   struct Bin {
-    bool in_span = false;     // the frame's mask spoke for the bin (see add_frame)
-    double centre_offset = 0; // |slope of the bin centre's ray| in the frame it came from
-    std::vector<RowMapCell> cells;
+    bool in_span = false;     // the nearest frame's mask spoke for the bin (see add_frame)
+    double centre_offset = 0; // |slope of the bin centre's ray| in the nearest frame
+    std::vector<RowMapCell> nearest; // per band, as the nearest frame saw it
+    std::vector<int> votes;          // per band, frames whose span holds the bin that saw it present
+    std::vector<RowMapCell> voted;   // per band, the present cell of the nearest of those frames
+    std::vector<double> voted_offset;
+    std::vector<RowMapCell> cells;   // what the map holds: nearest's, or voted's (see the top)
   };
   RowMapParams params_;
   std::vector<double> edges_;
