@@ -49,12 +49,12 @@
 // halfway to its neighbours) speaks for its bins outside that span only until a frame whose span
 // holds them comes: a neighbour's canopy in view is not in its mask, and the bin would read
 // empty.
-// A band the nearest frame reads empty is present when two frames whose span holds the bin saw
-// it present (the nearest of them gives the cell): a cap a few millimetres into a band is at
-// the edge of what one frame resolves, and the nearest frame alone missed whole stretches of the
-// top band that the frames beside it saw (docs/results.md "Two frames that see a band's canopy
-// outvote the nearest"). One frame is not enough: a false canopy one frame sees at its view's
-// edge stays out.
+// A band the nearest frame reads empty is present when two frames whose span holds the bin, and
+// that see its centre within a slope of 0.1 of the axis, saw it present (the nearest of them
+// gives the cell): a cap a few millimetres into a band is at the edge of what one frame
+// resolves, and the nearest frame alone missed whole stretches of the top band that the frames
+// beside it saw (docs/results.md "Two frames that see a band's canopy outvote the nearest").
+// One frame is not enough: a false canopy one frame sees at its view's edge stays out.
 // A band the chosen frame does not see (above or below the image) is unseen: present = false.
 #pragma once
 
