@@ -223,7 +223,7 @@ RowMapCell RowMap::cell(long bin, int band) const
 {
   const auto own = [&](long b) -> const RowMapCell * {
     const auto it = bins_.find(b);
-    return it == bins_.end() ? nullptr : &it->second.cells[std::size_t(band)];
+    return it == bins_.end() ? nullptr : &it->second.cell(band);
   };
   if (band < 0 || band >= n_bands())
     return RowMapCell();
@@ -478,10 +478,10 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     auto it = bins_.find(b + b0);
     const bool keep_old = it != bins_.end() && (in_span != it->second.in_span ? !in_span
                                                              : !(offset < it->second.centre_offset));
-    std::vector<RowMapCell> seen(static_cast<std::size_t>(nb));
+    std::vector<RowMapCell> frame_cells(static_cast<std::size_t>(nb));
     for (int k = 0; k < nb; ++k) {
       const std::size_t c = std::size_t(b * nb + k);
-      RowMapCell &cell = seen[std::size_t(k)];
+      RowMapCell &cell = frame_cells[std::size_t(k)];
       cell.seen = total[c] > 0;
       if (!cell.seen)
         continue;
@@ -498,29 +498,30 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     Bin &out = bins_[b + b0];
     if (out.nearest.empty()) {
       out.nearest.resize(std::size_t(nb));
-      out.voted.resize(std::size_t(nb));
-      out.voted_offset.assign(std::size_t(nb), std::numeric_limits<double>::infinity());
-      out.votes.assign(std::size_t(nb), 0);
+      out.votes.resize(std::size_t(nb));
     }
     if (in_span && offset <= kVoteSlope)
       for (std::size_t k = 0; k < std::size_t(nb); ++k)
-        if (seen[k].present) {
-          ++out.votes[k];
-          if (offset < out.voted_offset[k]) {
-            out.voted_offset[k] = offset;
-            out.voted[k] = seen[k];
+        if (frame_cells[k].present) {
+          Vote &v = out.votes[k];
+          ++v.count;
+          if (offset < v.offset) {
+            v.offset = offset;
+            v.cell = frame_cells[k];
           }
         }
     if (!keep_old) {
       out.in_span = in_span;
       out.centre_offset = offset;
-      out.nearest = std::move(seen);
+      out.nearest = std::move(frame_cells);
     }
-    out.cells.resize(std::size_t(nb));
-    for (std::size_t k = 0; k < std::size_t(nb); ++k)
-      out.cells[k] = !out.nearest[k].present && out.votes[k] >= kVotes ? out.voted[k]
-                                                                       : out.nearest[k];
   }
+}
+
+const RowMapCell &RowMap::Bin::cell(int band) const
+{
+  const std::size_t k = std::size_t(band);
+  return !nearest[k].present && votes[k].count >= kVotes ? votes[k].cell : nearest[k];
 }
 
 void RowMap::write_csv(const std::string &path) const
@@ -553,8 +554,8 @@ template <class It> std::pair<double, double> present_distances(It first, It las
   std::pair<double, double> r(std::numeric_limits<double>::infinity(),
                               -std::numeric_limits<double>::infinity());
   for (; first != last; ++first)
-    for (const RowMapCell &c : first->second.cells)
-      if (c.present) {
+    for (int k = 0; k < int(first->second.nearest.size()); ++k)
+      if (const RowMapCell &c = first->second.cell(k); c.present) {
         r.first = std::min(r.first, c.distance_m);
         r.second = std::max(r.second, c.distance_m);
       }

@@ -193,14 +193,20 @@ public:
                  const RowMapRenderParams &render = RowMapRenderParams()) const;
 
 private:
+  // A band's votes: the frames whose span holds the bin, near the axis, that saw it present
+  // (see the top), and the cell of the nearest of them.
+  struct Vote {
+    int count = 0;
+    double offset = std::numeric_limits<double>::infinity();
+    RowMapCell cell;
+  };
   struct Bin {
     bool in_span = false;     // the nearest frame's mask spoke for the bin (see add_frame)
     double centre_offset = 0; // |slope of the bin centre's ray| in the nearest frame
     std::vector<RowMapCell> nearest; // per band, as the nearest frame saw it
-    std::vector<int> votes;          // per band, frames whose span holds the bin that saw it present
-    std::vector<RowMapCell> voted;   // per band, the present cell of the nearest of those frames
-    std::vector<double> voted_offset;
-    std::vector<RowMapCell> cells;   // what the map holds: nearest's, or voted's (see the top)
+    std::vector<Vote> votes;         // per band
+    // What the map holds of a band: the nearest frame's cell, or the votes' (see the top).
+    const RowMapCell &cell(int band) const;
   };
   RowMapParams params_;
   std::vector<double> edges_;
