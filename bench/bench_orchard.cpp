@@ -33,6 +33,7 @@
 // apart.
 #include "chain_sweep.hpp"
 #include "treestereo/metrics.hpp"
+#include "treestereo/rectify.hpp"
 #include "treestereo/rowmap.hpp"
 #include "treestereo/spray.hpp"
 #include "treestereo/stats.hpp"
@@ -610,9 +611,11 @@ struct DrivebyRun {
 };
 
 // The truth of spraycontrol's commands: per band of the row map (heights above the ground), the
-// near row's canopy along the row as the left camera sees it (GroundTruth::row_points_mm of every
-// frame), gaps shorter than min_gap closed, canopy shorter than min_canopy dropped (SprayParams'
-// defaults, as spraycontrol's). The points are gathered in 10 mm bins along the row, and each bin
+// near row's canopy along the row as the left camera sees it within the rectified left view
+// (GroundTruth::row_points_mm of every frame whose rectified pixel lies in the view: the
+// rendered view is wider, and canopy only its margin shows is no stereo chain's to see), gaps
+// shorter than min_gap closed, canopy shorter than min_canopy dropped (SprayParams' defaults, as
+// spraycontrol's). The points are gathered in 10 mm bins along the row, and each bin
 // keeps its lowest and highest x: a stretch of canopy runs from its first bin's lowest point to
 // its last bin's highest, not to the bins' edges (which would lengthen every stretch by one bin,
 // 10 mm, on average).
@@ -631,9 +634,17 @@ struct SprayTruth {
     lo_x.assign(present.size(), std::vector<double>(bins, 0));
     hi_x = lo_x;
   }
-  void add(const GroundTruth &t, double travel_mm, double camera_height_mm)
+  // `view`: the chain's rectified geometry (R1, fx, fy, cx, cy, view size).
+  void add(const GroundTruth &t, double travel_mm, double camera_height_mm,
+           const StereoGeometry &view)
   {
+    const double fy = view.fy > 0 ? view.fy : view.fx;
     for (const cv::Point3f &q : t.row_points_mm) {
+      const cv::Vec3d r = view.R1 * cv::Vec3d(q.x, q.y, q.z);
+      const double u = view.fx * r[0] / r[2] + view.cx[0], v = fy * r[1] / r[2] + view.cy;
+      if (!(r[2] > 0) || u < -0.5 || v < -0.5 || u >= view.view_size.width - 0.5 ||
+          v >= view.view_size.height - 0.5)
+        continue;
       const double h = camera_height_mm - q.y, x = travel_mm + q.x;
       const long bin = std::lround(std::floor((x - lo_mm) / kBinMm));
       if (bin < 0 || bin >= long(present[0].size()))
@@ -820,12 +831,14 @@ void driveby_sweep(const Options &o)
       std::vector<GstTreeStereoSectionCommand> commands;
       const RowMapParams map_params;
       SprayTruth spray_truth(-3000, 1000 * (last + 3), map_params);
+      const StereoGeometry view = compute_rectification(rig.calibration(), o.size).geometry;
       std::vector<int> front(std::size_t(run.frames), 0); // each frame's tree in front
       for (int k = 0; k < run.frames; ++k) {
         cv::Mat rgb;
         GroundTruth gt;
         renderer.render(LEFT, std::uint64_t(k), rgb, &gt);
-        spray_truth.add(gt, renderer.travel_mm(std::uint64_t(k)), run.c.params().camera_height_mm);
+        spray_truth.add(gt, renderer.travel_mm(std::uint64_t(k)), run.c.params().camera_height_mm,
+                        view);
         front[std::size_t(k)] = gt.front_tree;
       }
       const auto on_frame = [&](int frame, const std::vector<GstBuffer *> &buf) {

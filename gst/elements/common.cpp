@@ -272,7 +272,8 @@ GstTreeStereoCanopyMode canopy_mode_to_gst(CanopyMode mode)
   return mode == CanopyMode::Row ? GST_TREE_STEREO_CANOPY_ROW : GST_TREE_STEREO_CANOPY_TREE;
 }
 
-GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, CanopyMode mode)
+GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, CanopyMode mode,
+                                         const Silhouette *row)
 {
   GstTreeStereoCanopyMeta *meta = gst_buffer_add_tree_stereo_canopy_meta(buf, canopy_mode_to_gst(mode));
   if (!meta)
@@ -280,6 +281,8 @@ GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, 
   Silhouette s = r.silhouette;
   s.present = r.present && s.present;
   silhouette_to_view(s, &meta->view);
+  if (row && row->present)
+    silhouette_to_view(*row, &meta->row_view);
   constexpr double kMmToM = 1e-3;
   meta->near_m = r.near_mm * kMmToM;
   meta->far_m = r.far_mm * kMmToM;
@@ -355,7 +358,7 @@ GroundPlane ground_from_meta(const GstTreeStereoCanopyMeta *meta)
 
 std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
                                         const GstTreeStereoMatchesMeta *mm, guint view_width,
-                                        bool grid)
+                                        bool grid, double dropped_from_mm, double dropped_to_mm)
 {
   std::vector<PixelPoint> out;
   if (!pm || view_width == 0)
@@ -365,7 +368,7 @@ std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
   const guint first_grid = pm->dense ? 0 : pm->n_points - n_grid;
   for (guint i = 0; i < pm->n_points; i++) {
     const GstTreeStereoPoint &p = pm->points[i];
-    if (!p.valid)
+    if (!p.valid && !(p.z >= dropped_from_mm && p.z <= dropped_to_mm && dropped_from_mm < dropped_to_mm))
       continue;
     PixelPoint q;
     if (i >= first_grid) { // a grid or dense point: match_index is the left pixel's index
@@ -501,12 +504,26 @@ void feed_row_map(RowMap &map, GstBuffer *buf, const StereoGeometry &geometry,
   if (mask.empty() || mask.size() != geometry.view_size)
     mask = cv::Mat::zeros(geometry.view_size, CV_8U); // no canopy in view: all seen empty
   const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
+  const std::vector<PixelPoint> points =
+      pixel_points_of(pm, mm, guint(geometry.view_size.width));
   // mode tree: the mask holds the selected tree alone, so the frame speaks for its part of the
   // row only (a neighbour's canopy in view is not in the mask)
-  const double lo = canopy ? canopy->cut_lo_m * 1e3 : -std::numeric_limits<double>::infinity();
-  const double hi = canopy ? canopy->cut_hi_m * 1e3 : std::numeric_limits<double>::infinity();
-  map.add_frame(mask, pixel_points_of(pm, mm, guint(geometry.view_size.width)), geometry, ground,
-                position_mm, row_direction, lo, hi);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double lo = canopy ? canopy->cut_lo_m * 1e3 : -kInf;
+  const double hi = canopy ? canopy->cut_hi_m * 1e3 : kInf;
+  map.add_frame(mask, points, geometry, ground, position_mm, row_direction, lo, hi);
+  // The row view (a stream's first frame) speaks for the rest: on each side of the tree's part.
+  const MappedSilhouette row(canopy && canopy->row_view.present ? &canopy->row_view : nullptr);
+  const cv::Mat &row_mask = row.get().mask;
+  if (row_mask.empty() || row_mask.size() != geometry.view_size)
+    return;
+  // Its depths: the points stereodepth dropped as off the tree, within the near row's zone.
+  const std::vector<PixelPoint> row_points = pixel_points_of(
+      pm, mm, guint(geometry.view_size.width), true, canopy->near_m * 1e3, canopy->far_m * 1e3);
+  if (std::isfinite(lo))
+    map.add_frame(row_mask, row_points, geometry, ground, position_mm, row_direction, -kInf, lo);
+  if (std::isfinite(hi))
+    map.add_frame(row_mask, row_points, geometry, ground, position_mm, row_direction, hi, kInf);
 }
 
 cv::Vec3d row_direction_of(const GstTreeStereoMetrics &metrics)

@@ -134,8 +134,10 @@ GstTreeStereoCanopyMode canopy_mode_to_gst(CanopyMode mode);
 
 /* Attaches lib/'s 3D canopy decision as a GstTreeStereoCanopyMeta: the silhouette (its mask
  * copied into a new GstBuffer) as the left view, the zone and the ground in metres, the counts.
- * r.present false gives a view with present FALSE (no canopy in the zone). */
-GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, CanopyMode mode);
+ * r.present false gives a view with present FALSE (no canopy in the zone). @row (may be NULL):
+ * the near row's silhouette (CanopyDepth::row) as the row view, when present. */
+GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, CanopyMode mode,
+                                         const Silhouette *row = nullptr);
 
 /* The canopy meta's stored segments (m) as lib's (mm), left to right. */
 std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta);
@@ -143,15 +145,20 @@ std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta);
 GroundPlane ground_from_meta(const GstTreeStereoCanopyMeta *meta);
 /* The points meta's valid points with their rectified-left pixels: a grid or dense point's from
  * its pixel index (y * @view_width + x), a match point's from the matches meta (skipped when
- * @mm is NULL or lacks it). @grid false: the match points alone. */
+ * @mm is NULL or lacks it). @grid false: the match points alone. @dropped_from_mm <
+ * @dropped_to_mm: also the points dropped (valid FALSE) whose depth lies in that range (mm):
+ * stereodepth keeps a point off the canopy's zone or mask with its triangulated coordinates,
+ * a neighbour's among them. */
 std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
                                         const GstTreeStereoMatchesMeta *mm, guint view_width,
-                                        bool grid = true);
+                                        bool grid = true, double dropped_from_mm = 0,
+                                        double dropped_to_mm = 0);
 /* Adds one frame of @buf to a row map (treemetrics' map, spraycontrol's): the canopy meta's
  * silhouette as the mask (all empty when it has none of the view's size: the view seen without
  * canopy), the points meta's points with their pixels (@pm may be NULL), @ground (must be found),
- * the rig's position along the row (mm) and the row's direction (row_direction_of()). lib's
- * exceptions pass through. */
+ * the rig's position along the row (mm) and the row's direction (row_direction_of()). Mode
+ * tree: the mask speaks for the tree's part of the row (cut_lo_m to cut_hi_m); the row view,
+ * when the meta has one, for the rest of the view. lib's exceptions pass through. */
 void feed_row_map(RowMap &map, GstBuffer *buf, const StereoGeometry &geometry,
                   const GstTreeStereoCanopyMeta *canopy, const GstTreeStereoPointsMeta *pm,
                   const GroundPlane &ground, double position_mm, const cv::Vec3d &row_direction);

@@ -555,7 +555,9 @@ static void gst_spray_control_class_init(GstSprayControlClass *klass)
   props.real("min-gap", "Minimum gap", "Gaps in the canopy shorter than this (m) stay sprayed", 0.0,
              100.0, DEFAULT_MIN_GAP, TS_FIELD(min_gap), kRwReady);
   props.real("min-canopy", "Minimum canopy",
-             "Canopy shorter than this along the row (m) is not sprayed", 0.0, 100.0,
+             "Canopy shorter than this along the row (m) is not sprayed (canopy where the data "
+             "begins is, whatever its length: the view cut it)",
+             0.0, 100.0,
              DEFAULT_MIN_CANOPY, TS_FIELD(min_canopy), kRwReady);
   props.enumeration("rate-model", "Rate model", "How a section's rate follows the canopy",
                     GST_TYPE_SPRAY_CONTROL_RATE_MODEL, DEFAULT_RATE_MODEL, TS_FIELD(rate_model),

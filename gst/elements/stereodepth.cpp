@@ -39,7 +39,9 @@
  * With #stereodepth:canopy `tree` (default) or `row` (mode sparse, densify on) the canopy is
  * decided in 3D (lib's canopy_depth(): ground plane, near row, the tree in front along the
  * row; docs/elements/stereodepth.md) and a #GstTreeStereoCanopyMeta is attached; points off it
- * stay with valid=FALSE, counted in `dropped-zone`. Without side-by-side frames or a vegetation
+ * stay with valid=FALSE, counted in `dropped-zone`. With `tree`, a stream's first frame (and one
+ * flagged DISCONT) also carries the near row's canopy in the meta's `row_view`, for the row
+ * maps' part of the row behind the first tree in view. Without side-by-side frames or a vegetation
  * meta ONE warning says so for densification and the canopy alike; densify=FALSE leaves the
  * canopy off without a warning (a choice). Canopy settings that cannot run together (ground=rig
  * without camera-height, zone-far not beyond zone-near, max-height not above min-height) are a
@@ -197,6 +199,7 @@ struct State {
   bool info_set = false;
   bool warned_no_densify = false; // the reason densification is skipped was said once
   GroundTracker ground;           // ground=fit: the ground of the frames before
+  bool first_frame = true;        // canopy=tree: the next frame also gets the row view
 };
 
 /* What one buffer gives: the points, their figures and (dense) the depth map. */
@@ -207,6 +210,7 @@ struct Output {
   cv::Rect box;
   bool has_canopy = false;        // the 3D canopy was decided
   CanopyResult canopy;
+  Silhouette row;                 // canopy=tree, a stream's first frame: the near row's canopy
 };
 
 } // namespace
@@ -319,9 +323,15 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
   const cv::Mat mat = frame.mat();
   p.grid.order = treestereo::gst::pixel_layout(GST_VIDEO_INFO_FORMAT(&st->info)).order();
   // A break in the stream (a camera lost and back) may have moved the rig: no prior then.
-  if (GST_BUFFER_FLAG_IS_SET(buf, GST_BUFFER_FLAG_DISCONT))
+  if (GST_BUFFER_FLAG_IS_SET(buf, GST_BUFFER_FLAG_DISCONT)) {
     st->ground.reset();
+    st->first_frame = true;
+  }
   p.canopy.ground_prior = st->ground.prior();
+  // The part of the row behind the first tree in view is no later frame's tree: the first
+  // frame's row view is all the row map gets of it.
+  p.row_view = st->first_frame && p.canopy.mode == CanopyMode::Tree;
+  st->first_frame = false;
   const gint64 t0 = g_get_monotonic_time();
   CanopyDepth c = canopy_depth(treestereo::gst::view_mat(mat, LEFT, 2),
                                treestereo::gst::view_mat(mat, RIGHT, 2), sil.get(), seeds, g, p);
@@ -335,6 +345,7 @@ static bool canopy_depth_of(GstStereoDepth *self, GstBuffer *buf,
   treestereo::gst::depth_stats_to_gst(c.depth.stats, &out.stats);
   out.stats.n_grid = guint(c.matches.size() - c.n_seeds);
   const CanopyResult &cr = c.canopy;
+  out.row = std::move(c.row);
   st->ground.update(cr.ground);
   GST_DEBUG_OBJECT(self,
                    "canopy %s: zone %.0f-%.0f mm, ground %s%s (n %.3f %.3f %.3f, d %.0f mm, %zu "
@@ -464,6 +475,7 @@ static gboolean gst_stereo_depth_set_caps(GstBaseTransform *trans, GstCaps *inca
   }
   self->state->info_set = true;
   self->state->ground.reset(); // a new stream
+  self->state->first_frame = true;
   return TRUE;
 }
 
@@ -483,7 +495,8 @@ static void attach_and_post(GstStereoDepth *self, GstBuffer *buf, const Settings
       out.has_canopy ? treestereo::gst::add_canopy_meta(
                            buf, out.canopy,
                            s.canopy == GST_STEREO_DEPTH_CANOPY_ROW ? CanopyMode::Row
-                                                                   : CanopyMode::Tree)
+                                                                   : CanopyMode::Tree,
+                           &out.row)
                      : nullptr;
   GST_LOG_OBJECT(self, "%u points, %u valid, median %.1f mm", out.stats.n_points,
                  out.stats.n_valid, out.stats.median_z_mm);

@@ -480,6 +480,7 @@ static void
 canopy_free (GstTreeStereoCanopyMeta * meta, GstBuffer * buffer)
 {
   gst_tree_stereo_vegetation_view_clear (&meta->view);
+  gst_tree_stereo_vegetation_view_clear (&meta->row_view);
 }
 
 static gboolean
@@ -513,8 +514,11 @@ canopy_transform (GstBuffer * dest, GstMeta * meta, GstBuffer * buffer, GQuark t
   dmeta->cut_lo_m = src->cut_lo_m;
   dmeta->cut_hi_m = src->cut_hi_m;
   gst_tree_stereo_vegetation_view_copy (&dmeta->view, &src->view);
-  if (scale)
+  gst_tree_stereo_vegetation_view_copy (&dmeta->row_view, &src->row_view);
+  if (scale) {
     vegetation_view_scale (&dmeta->view, sx, sy);
+    vegetation_view_scale (&dmeta->row_view, sx, sy);
+  }
   return TRUE;
 }
 

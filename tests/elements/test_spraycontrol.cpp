@@ -75,8 +75,13 @@ bool in_canopy(const Canopy &c, double x)
   return false;
 }
 
-/* A frame at @pts with the rig at @position_m (m) and the canopy where @canopy says. */
-GstBuffer *frame(GstClockTime pts, double position_m, const Canopy &canopy)
+/* A frame at @pts with the rig at @position_m (m) and the canopy where @canopy says. With a
+ * finite @cut_lo_m (world x, m) the canopy meta is stereodepth's mode tree: the tree's part of the
+ * row begins there, its mask holds the canopy from there on, and the points before it are kept
+ * dropped (valid FALSE, as stereodepth drops a neighbour's); @row_view: the meta also has the
+ * row view (all the canopy), as on a stream's first frame. */
+GstBuffer *frame(GstClockTime pts, double position_m, const Canopy &canopy,
+                 double cut_lo_m = -INFINITY, bool row_view = false)
 {
   GstBuffer *b = gst_buffer_new_allocate(nullptr, kW * kH, nullptr);
   gst_buffer_memset(b, 0, 0, kW * kH);
@@ -96,38 +101,59 @@ GstBuffer *frame(GstClockTime pts, double position_m, const Canopy &canopy)
   gst_buffer_add_tree_stereo_metrics_meta(b, &m, nullptr);
 
   GstBuffer *mask = gst_buffer_new_allocate(nullptr, kW * kH, nullptr);
-  GstMapInfo map;
+  GstBuffer *row = gst_buffer_new_allocate(nullptr, kW * kH, nullptr);
+  GstMapInfo map, row_map;
   gst_buffer_map(mask, &map, GST_MAP_WRITE);
+  gst_buffer_map(row, &row_map, GST_MAP_WRITE);
   std::memset(map.data, 0, kW * kH);
+  std::memset(row_map.data, 0, kW * kH);
   std::vector<GstTreeStereoPoint> points;
+  bool any_tree = false, any_row = false;
   for (int u = 0; u < kW; u++) {
     const double X = (u - kW / 2.0) / kF * kZ;
-    if (!in_canopy(canopy, (X + position_m * 1000.0) / 1000.0))
+    const double x = (X + position_m * 1000.0) / 1000.0;
+    if (!in_canopy(canopy, x))
       continue;
+    const bool tree = x >= cut_lo_m;
     for (int v = 0; v < kH; v++) {
-      map.data[v * kW + u] = 255;
+      map.data[v * kW + u] = tree ? 255 : 0;
+      row_map.data[v * kW + u] = 255;
       if (v % 4 == 0) {
         GstTreeStereoPoint p{};
         p.x = float(X);
         p.y = float((v - kH / 2.0) / kF * kZ);
         p.z = float(kZ);
         p.match_index = guint32(v * kW + u);
-        p.valid = TRUE;
+        p.valid = tree;
         points.push_back(p);
       }
     }
+    any_tree = any_tree || tree;
+    any_row = true;
   }
   gst_buffer_unmap(mask, &map);
+  gst_buffer_unmap(row, &row_map);
   GstTreeStereoPointsMeta *pm =
       gst_buffer_add_tree_stereo_points_meta(b, points.data(), guint(points.size()), nullptr);
   pm->dense = TRUE;
-  GstTreeStereoCanopyMeta *c = gst_buffer_add_tree_stereo_canopy_meta(b, GST_TREE_STEREO_CANOPY_ROW);
+  const bool tree_mode = std::isfinite(cut_lo_m);
+  GstTreeStereoCanopyMeta *c = gst_buffer_add_tree_stereo_canopy_meta(
+      b, tree_mode ? GST_TREE_STEREO_CANOPY_TREE : GST_TREE_STEREO_CANOPY_ROW);
+  c->near_m = 0.5 * kZ / 1000.0;
+  c->far_m = 1.5 * kZ / 1000.0;
+  if (tree_mode)
+    c->cut_lo_m = cut_lo_m - position_m; // camera X at the row's depth
+  if (row_view && any_row) {
+    c->row_view.present = TRUE;
+    gst_tree_stereo_vegetation_view_set_mask(&c->row_view, row, kW, kH, kW);
+  }
+  gst_buffer_unref(row);
   c->ground_found = TRUE;
   c->ground_normal[0] = 0;
   c->ground_normal[1] = -1; // y points down in the camera frame
   c->ground_normal[2] = 0;
   c->ground_d_m = kCamHeight;
-  c->view.present = !points.empty();
+  c->view.present = any_tree;
   if (c->view.present) {
     c->view.mask = mask;
     c->view.mask_width = kW;
@@ -246,6 +272,45 @@ GST_START_TEST(test_eos_plans_the_canopy_the_rig_did_not_pass)
   const gint64 off_at = expected_at(c[1].position_m, 1.5, 1.0, 160 * GST_MSECOND);
   fail_unless(std::llabs(c[1].at_ns - off_at) <= 2, "off at %" G_GINT64_FORMAT " expected %"
               G_GINT64_FORMAT, c[1].at_ns, off_at);
+}
+GST_END_TEST;
+
+GST_START_TEST(test_the_first_frames_row_view_sprays_the_canopy_behind_its_tree)
+{
+  // Mode tree: the tree in front stands at -0.5..0.5 m, its part of the row from -0.625 m on;
+  // behind it a neighbour's crown ends at -0.94 m, and the first frame's view begins at -1.0 m.
+  // The rig drives away from it: no later frame takes the neighbour for its tree. The first
+  // frame's row view is all there is of it: its 6 cm in view are sprayed (the view cut them,
+  // min-canopy does not apply).
+  const Canopy canopy = {{-1.2, -0.94}, {-0.5, 0.5}};
+  for (bool row_view : {true, false}) {
+    Harness r = harness("");
+    for (int i = 0; i <= 25; i++) {
+      const GstClockTime t = GstClockTime(i) * kFrame;
+      fail_unless_equals_int(
+          gst_harness_push(r.h, frame(t, kP0 + 0.1 * i, canopy, -0.625, row_view && i == 0)),
+          GST_FLOW_OK);
+      gst_buffer_unref(gst_harness_pull(r.h));
+    }
+    fail_unless(gst_harness_push_event(r.h, gst_event_new_eos()));
+    std::vector<GstTreeStereoSectionCommand> c;
+    for (const auto &k : commands(r.bus))
+      if (k.section == 0)
+        c.push_back(k);
+    harness_free(r);
+    if (!row_view) { // the neighbour unseen: the tree alone
+      fail_unless_equals_int(int(c.size()), 2);
+      fail_unless(c[0].on && std::abs(c[0].position_m + 0.5) <= kHalfColumn);
+      continue;
+    }
+    fail_unless_equals_int(int(c.size()), 4);
+    fail_unless(c[0].on && std::abs(c[0].position_m + 1.0) <= kHalfColumn, "on at %f",
+                c[0].position_m);
+    fail_unless(!c[1].on && std::abs(c[1].position_m + 0.94) <= kHalfColumn, "off at %f",
+                c[1].position_m);
+    fail_unless(c[2].on && std::abs(c[2].position_m + 0.5) <= kHalfColumn);
+    fail_unless(!c[3].on && std::abs(c[3].position_m - 0.5) <= kHalfColumn);
+  }
 }
 GST_END_TEST;
 
@@ -539,6 +604,7 @@ static Suite *spraycontrol_suite(void)
   tcase_set_timeout(tc, 300);
   suite_add_tcase(s, tc);
   tcase_add_test(tc, test_timing_two_speeds_two_latencies);
+  tcase_add_test(tc, test_the_first_frames_row_view_sprays_the_canopy_behind_its_tree);
   tcase_add_test(tc, test_min_gap_and_min_canopy);
   tcase_add_test(tc, test_speed_change_halfway);
   tcase_add_test(tc, test_fail_safe_after_hold_time);

@@ -705,6 +705,9 @@ struct OrchardRun {
   GstTreeStereoDepthStats message_stats{};
   GstTreeStereoCanopyMeta message_fields{};
   std::vector<GstTreeStereoRowSegment> segments; // the canopy meta's
+  bool row_view = false;          // the first buffer's canopy meta has a row view
+  int row_x = 0, row_w = 0;       // its box (px)
+  guint later_row_views = 0;      // buffers after the first with one
   GstMessage *error = nullptr;     // owned
   guint warnings = 0;
 };
@@ -720,8 +723,11 @@ bool on_mask(const GstTreeStereoVegetationView &v, GstMapInfo &map, double x, do
 void orchard_handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
 {
   OrchardRun &r = *static_cast<OrchardRun *>(data);
-  if (r.buffer)
+  if (r.buffer) {
+    const GstTreeStereoCanopyMeta *cm = gst_buffer_get_tree_stereo_canopy_meta(buf);
+    r.later_row_views += cm && cm->row_view.present ? 1 : 0;
     return;
+  }
   r.buffer = true;
   const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);
   fail_unless(gm != nullptr);
@@ -759,6 +765,9 @@ void orchard_handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
   r.segments.assign(cm->segments, cm->segments + cm->n_stored_segments);
   r.cut_lo_m = cm->cut_lo_m;
   r.cut_hi_m = cm->cut_hi_m;
+  r.row_view = cm->row_view.present && cm->row_view.mask;
+  r.row_x = cm->row_view.bbox_x;
+  r.row_w = cm->row_view.bbox_width;
   r.canopy_present = cm->view.present;
   r.canopy_x = cm->view.bbox_x;
   r.canopy_w = cm->view.bbox_width;
@@ -791,11 +800,13 @@ void orchard_handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
   gst_buffer_unmap(cm->view.mask, &map);
 }
 
-/* One orchard pair (seed 3, the tree in front at 2 m) with these stereodepth properties. */
-OrchardRun run_orchard(const char *stereodepth_props)
+/* Orchard pairs (seed 3, the tree in front at 2 m; one unless `buffers`) with these
+ * stereodepth properties. */
+OrchardRun run_orchard(const char *stereodepth_props, int buffers = 1)
 {
   const std::string calib = orchard_calibration();
-  const std::string src = std::string("treetestsrc scene=orchard seed=3 num-buffers=1 ");
+  const std::string src = std::string("treetestsrc scene=orchard seed=3 num-buffers=") +
+                          std::to_string(buffers) + " ";
   const std::string desc =
       "stereorectify name=r calibration=" + calib + " ! exgsegment ! siftmatch ! stereodepth " +
       stereodepth_props + " ! treemetrics ! fakesink name=out signal-handoffs=true " + src +
@@ -1032,6 +1043,16 @@ GST_START_TEST(test_orchard_canopy_off_row_and_empty_zone)
   g_print("[ orchard ] canopy box width: tree %d px, row %d px\n", tree.canopy_w, row.canopy_w);
   fail_unless(row.canopy_w > 1.3 * tree.canopy_w, "row %d px, tree %d px", row.canopy_w,
               tree.canopy_w);
+  /* canopy=tree: the stream's first frame also carries the near row's canopy as canopy=row
+   * decides it (the row map's part of the row behind the first tree); the next frame does not.
+   * canopy=row: none (its view is the row) */
+  OrchardRun two = run_orchard("canopy=tree", 2);
+  fail_unless(two.error == nullptr && two.row_view, "no row view on the first frame");
+  g_print("[ orchard ] row view box x %d width %d px, canopy=row's x %d width %d px\n", two.row_x,
+          two.row_w, row.canopy_x, row.canopy_w);
+  fail_unless(two.row_x == row.canopy_x && two.row_w == row.canopy_w);
+  fail_unless_equals_int(two.later_row_views, 0);
+  fail_if(row.row_view, "a row view with canopy=row");
 
   /* a spray zone where nothing stands (the next row is at 5.5 m): no canopy, and treemetrics
    * says no tree */

@@ -47,6 +47,11 @@ const std::vector<Wall> kWalls = {{1000, 1600, 500, 1450, 2000},
                                   {1700, 2300, 700, 1300, 2200},
                                   {2800, 3300, 600, 1600, 1900}};
 
+// Mode tree's case: a narrow tree (1.0-1.3 m at 2 m) and a wide one (1.4-2.4 m at 2.2 m), the
+// cut between them at 1.35 m.
+const std::vector<Wall> kNarrowAndWide = {{1000, 1300, 500, 1450, 2000},
+                                          {1400, 2400, 700, 1300, 2200}};
+
 struct View {
   cv::Mat mask;
   std::vector<PixelPoint> points;
@@ -301,7 +306,7 @@ TEST(RowMap, AFrameOfOneTreeSpeaksForItsPartOfTheRowOnly)
   // its part of the row ending halfway across the gaps. A narrow tree (1.0-1.3 m) beside a
   // wide one (1.4-2.4 m): at 1.40-1.52 m the rig is nearer the narrow one's centre, so the
   // frames that see the wide one's first bins nearest the image centre do not hold it.
-  const std::vector<Wall> walls = {{1000, 1300, 500, 1450, 2000}, {1400, 2400, 700, 1300, 2200}};
+  const std::vector<Wall> &walls = kNarrowAndWide;
   const StereoGeometry g = camera();
   const double inf = std::numeric_limits<double>::infinity();
   RowMap with_span, without;
@@ -329,6 +334,43 @@ TEST(RowMap, AFrameOfOneTreeSpeaksForItsPartOfTheRowOnly)
     }
   // The case is there: without the spans, the wide tree's first bins read empty.
   EXPECT_GE(lost_without, 4);
+}
+
+TEST(RowMap, TheRowViewOfTheFirstFrameSpeaksForThePartBehindItsTree)
+{
+  // The run begins with the wide tree (1.4-2.4 m) in front and the narrow one (1.0-1.3 m) at the
+  // view's left edge; later frames, further along, never take the narrow one for their tree.
+  const std::vector<Wall> &walls = kNarrowAndWide;
+  RowMap tree_only, with_row;
+  const StereoGeometry g = camera();
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  for (double pos = 2300; pos <= 3500; pos += 100) {
+    const View v = cast(g, {walls[1]}, pos);
+    const double cut = 1350 - pos; // camera X of the cut between them
+    for (RowMap *m : {&tree_only, &with_row})
+      m->add_frame(v.mask, v.points, g, level_ground(), pos, cv::Vec3d(1, 0, 0), cut, inf);
+    if (pos == 2300) { // stereodepth's row view: both trees, for the span beside the tree's
+      const View row = cast(g, walls, pos);
+      with_row.add_frame(row.mask, row.points, g, level_ground(), pos, cv::Vec3d(1, 0, 0), -inf,
+                         cut);
+    }
+  }
+  // The view's left edge at the narrow tree's depth is at 1.121 m: bins 23-25 are whole in it.
+  for (long b = 23; b <= 25; ++b)
+    for (int k = 0; k < 4; ++k) {
+      SCOPED_TRACE("bin " + std::to_string(b) + " band " + std::to_string(k));
+      // Its mask says nothing of them: unseen, not seen empty.
+      EXPECT_FALSE(tree_only.cell(b, k).seen);
+      EXPECT_FALSE(tree_only.cell(b, k).present);
+      EXPECT_TRUE(with_row.cell(b, k).present);
+      EXPECT_NEAR(with_row.cell(b, k).distance_m, 2.0, 0.01);
+    }
+  // The gap between them is seen empty; the wide tree is as without the row view.
+  EXPECT_TRUE(with_row.cell(26, 1).seen);
+  EXPECT_FALSE(with_row.cell(26, 1).present);
+  for (long b = 28; b < 48; ++b)
+    for (int k = 0; k < 4; ++k)
+      EXPECT_EQ(with_row.cell(b, k).present, tree_only.cell(b, k).present);
 }
 
 TEST(RowMap, ACrownsTopIsPlacedAtItsOwnDepth)

@@ -161,6 +161,27 @@ TEST(Spray, ShortCanopyIsNotSprayed)
             2u);
 }
 
+TEST(Spray, CanopyWhereTheDataBeginsIsSprayedAtAnyLength)
+{
+  // The first frame's view cut a neighbour's crown: 50 mm of it where the data begins (x = 0).
+  // How far it goes on before is not known; it is sprayed, under min_canopy as it is.
+  SprayPlanner planner(one_section());
+  const auto at_start = drive(planner, {{0.0, 0.05}, {1.0, 1.05}},
+                              [](std::int64_t t) { return double(t) * 1e-9; }, 100 * kMs,
+                              4000 * kMs);
+  ASSERT_EQ(at_start.size(), 2u); // the piece at 1.0 m is a speck: not sprayed
+  EXPECT_TRUE(at_start[0].c.on);
+  EXPECT_NEAR(at_start[0].c.position_m, 0.0, 1e-9);
+  EXPECT_FALSE(at_start[1].c.on);
+  EXPECT_NEAR(at_start[1].c.position_m, 0.05, 1e-9);
+  // Canopy that begins a bin after the data does: its start was seen, min_canopy holds.
+  SprayPlanner later(one_section());
+  EXPECT_EQ(drive(later, {{0.05, 0.10}}, [](std::int64_t t) { return double(t) * 1e-9; },
+                  100 * kMs, 4000 * kMs)
+                .size(),
+            0u);
+}
+
 TEST(Spray, SpeedChangeHalfwayIsFollowed)
 {
   // 1 m/s up to 2 s, then 2 m/s. The canopy at 4.0-5.0 m reaches the nozzles (1.5 m behind)

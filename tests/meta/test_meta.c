@@ -570,6 +570,9 @@ GST_START_TEST (test_canopy_meta)
   /* no neighbour cut the tree's part of the row until said (0 would be the optical axis) */
   fail_unless (isinf (c->cut_lo_m) && c->cut_lo_m < 0);
   fail_unless (isinf (c->cut_hi_m) && c->cut_hi_m > 0);
+  /* no row view until given (stereodepth gives one on a stream's first frame) */
+  fail_if (c->row_view.present);
+  fail_unless (c->row_view.mask == NULL && c->row_view.contour == NULL);
   fail_unless (gst_buffer_get_tree_stereo_canopy_meta (buf) == c);
   fail_unless (gst_meta_api_type_has_tag (GST_TREE_STEREO_CANOPY_META_API_TYPE,
           g_quark_from_static_string (GST_META_TAG_VIDEO_STR)));
@@ -578,6 +581,11 @@ GST_START_TEST (test_canopy_meta)
   fail_unless (gst_meta_api_type_has_tag (GST_TREE_STEREO_CANOPY_META_API_TYPE,
           g_quark_from_static_string (GST_META_TAG_VIDEO_ORIENTATION_STR)));
   fill_canopy (c, mask);
+  /* the row view: the same mask, a wider box */
+  c->row_view.present = TRUE;
+  c->row_view.bbox_width = 64;
+  c->row_view.bbox_height = 48;
+  gst_tree_stereo_vegetation_view_set_mask (&c->row_view, mask, 64, 48, 64);
   gst_buffer_unref (mask);
 
   /* a copy: every figure, the contour copied, the mask shared */
@@ -597,6 +605,8 @@ GST_START_TEST (test_canopy_meta)
   fail_unless (memcmp (d->view.contour, c->view.contour, 8 * sizeof (gint32)) == 0);
   fail_unless (d->view.mask == c->view.mask);
   fail_unless_equals_int (d->view.mask_stride, 64);
+  fail_unless (d->row_view.present && d->row_view.mask == c->row_view.mask);
+  fail_unless_equals_int (d->row_view.bbox_width, 64);
 
   /* a scale (the side-by-side frame 128x48 to 64x24): the view's pixel figures and mask scale
    * as the vegetation meta's do, metres and counts stay */
@@ -615,6 +625,10 @@ GST_START_TEST (test_canopy_meta)
   fail_unless_equals_int (map.data[5 * 32 + 15], 255);
   fail_unless_equals_int (map.data[5 * 32 + 16], 0);
   gst_buffer_unmap (d->view.mask, &map);
+  fail_unless (d->row_view.present);
+  fail_unless_equals_int (d->row_view.bbox_width, 32);
+  fail_unless_equals_int (d->row_view.mask_width, 32);
+  fail_unless_equals_int (d->row_view.mask_height, 24);
 
   gst_buffer_unref (scaled);
   gst_buffer_unref (copy);

@@ -1197,6 +1197,14 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
     cp.sample_spacing_px = coarse_stats.step;
   out.canopy =
       select_canopy(vegetation.mask, pts, g, cp, left_grey, right_grey, p.grid.order, &vegetation);
+  if (p.row_view && cp.mode == CanopyMode::Tree) {
+    CanopyParams rp = cp;
+    rp.mode = CanopyMode::Row;
+    CanopyResult row =
+        select_canopy(vegetation.mask, pts, g, rp, left_grey, right_grey, p.grid.order, &vegetation);
+    out.row = std::move(row.silhouette);
+    out.row.present = row.present && out.row.present;
+  }
   if (out.canopy.present && cp.mode == CanopyMode::Tree)
     for (RowSegment &s : out.canopy.segments)
       if (s.selected)

@@ -482,7 +482,7 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
     for (int k = 0; k < nb; ++k) {
       const std::size_t c = std::size_t(b * nb + k);
       RowMapCell &cell = frame_cells[std::size_t(k)];
-      cell.seen = total[c] > 0;
+      cell.seen = in_span && total[c] > 0; // outside the span the mask says nothing
       if (!cell.seen)
         continue;
       // Canopy placed at its own depth may outnumber the cell's pixels at the strip's.

@@ -193,6 +193,7 @@ void SprayPlanner::present(int k, double x_start, double x_end, double rate)
   }
   if (!s.cand) {
     s.cand = true;
+    s.cand_open = x_start <= data_start_ + kEps;
     s.cand_start = x_start;
     s.cand_rates.clear();
     s.cand_rates.push_back({k, true, rate, x_start});
@@ -200,7 +201,7 @@ void SprayPlanner::present(int k, double x_start, double x_end, double rate)
     s.cand_rates.push_back({k, true, rate, x_start});
   }
   s.cand_end = x_end;
-  if (s.cand_end - s.cand_start >= p_.min_canopy_m - kEps) {
+  if (s.cand_open || s.cand_end - s.cand_start >= p_.min_canopy_m - kEps) {
     planned_.insert(planned_.end(), s.cand_rates.begin(), s.cand_rates.end());
     s.on = true;
     s.rate = s.cand_rates.back().rate;
@@ -289,6 +290,8 @@ void SprayPlanner::plan(const std::vector<SpraySlice> &slices)
     if (have_frontier_ && sl.end_m <= frontier_ + kEps)
       continue; // already planned
     const double start = have_frontier_ ? std::max(sl.start_m, frontier_) : sl.start_m;
+    if (!have_frontier_)
+      data_start_ = start;
     if (have_frontier_ && start > frontier_ + kEps)
       for (int k = 0; k < p_.n_sections; ++k)
         absent(k, frontier_, start); // bins no frame held: no canopy known there

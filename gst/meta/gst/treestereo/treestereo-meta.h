@@ -384,6 +384,10 @@ typedef struct {
  *   the gap to its left neighbour (or where joined crowns meet); -infinity: no neighbour. @view
  *   holds no canopy left of it, whatever the view shows there (mode row: -infinity)
  * @cut_hi_m: likewise where it ends (+infinity: no neighbour)
+ * @row_view: mode tree, on a stream's first frame (the first after the caps are set, or one
+ *   flagged DISCONT): the near row's canopy as mode row decides it, the neighbours in view
+ *   included. The part of the row behind the first tree in view is no later frame's tree: the
+ *   row map takes it from here. Not present on other frames and in mode row (@view is the row)
  *
  * Added by stereodepth when it decides the canopy in 3D. treemetrics measures @view instead of
  * the vegetation meta's left view, treeoverlay outlines it.
@@ -409,6 +413,7 @@ typedef struct {
   GstTreeStereoRowSegment segments[GST_TREE_STEREO_MAX_SEGMENTS];
   gdouble cut_lo_m;
   gdouble cut_hi_m;
+  GstTreeStereoVegetationView row_view;
 } GstTreeStereoCanopyMeta;
 
 GType gst_tree_stereo_canopy_meta_api_get_type (void);

@@ -205,15 +205,24 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
 // does (`grid`), seeded by the matches that fell on it, and every point is triangulated and
 // cleaned (`filter`). Points off the canopy's mask or outside its depth zone are kept with
 // valid = false and counted in stats.dropped_zone.
+// `row_view` (mode tree): also decide the near row's canopy as mode row would, on the same
+// points, into CanopyDepth::row. The tree's mask speaks for its own part of the row only; the
+// part behind the first tree in view is no later frame's tree, and the row map takes it from
+// this mask (stereodepth asks for it on a stream's first frame). As costly again as the
+// decision itself.
 struct CanopyDepthParams {
   CanopyParams canopy;
   DensifyParams grid;
   DepthParams filter;
   int coarse_points = 1200;
+  bool row_view = false;
 };
 
 struct CanopyDepth {
   CanopyResult canopy;
+  // With CanopyDepthParams::row_view in mode tree: the near row's canopy (mode row's
+  // silhouette); not present otherwise.
+  Silhouette row;
   // The seeds followed by the canopy's grid matches, and one point per match (same order).
   std::vector<StereoMatch> matches;
   std::size_t n_seeds = 0;

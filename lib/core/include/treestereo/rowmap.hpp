@@ -46,9 +46,12 @@
 // along the row (X = Z * (u - cx) / fx, and (u - cx) is smallest), the crown's side is least
 // foreshortened into its front, and the bin is far from the image edge, where the canopy is cut.
 // A frame whose mask holds one tree alone (stereodepth's mode tree: the canopy between the cuts
-// halfway to its neighbours) speaks for its bins outside that span only until a frame whose span
-// holds them comes: a neighbour's canopy in view is not in its mask, and the bin would read
-// empty.
+// halfway to its neighbours) does not speak for its bins outside that span: a neighbour's canopy
+// in view is not in its mask, and the bin would read empty. Those bins come from the frames
+// whose span holds them; until one comes they are unseen. A part of the row that is no frame's
+// tree stays unseen: beside the last tree in view at the end of a run, and behind the first one
+// at its start unless that frame's mask of the whole row is added for it (stereodepth's row
+// view of a stream's first frame, fed with the span beside the tree's: feed_row_map()).
 // A band the nearest frame reads empty is present when two frames whose span holds the bin, and
 // that see its centre within a slope of 0.1 of the axis, saw it present (the nearest of them
 // gives the cell): a cap a few millimetres into a band is at the edge of what one frame

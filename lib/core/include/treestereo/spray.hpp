@@ -13,7 +13,9 @@
 // followed up to the last frame before the valve switches.
 //
 // Per section, runs along the row: a gap shorter than min_gap_m between canopy stays sprayed;
-// canopy (gaps closed) shorter than min_canopy_m is not sprayed. Missing bins count as gaps.
+// canopy (gaps closed) shorter than min_canopy_m is not sprayed, unless it begins where the data
+// begins or resumes after the fail-safe (that slice's start): the view cut it there, and how far
+// it goes on before is not known. Missing bins count as gaps.
 // Within a bin the canopy runs from its cells' leftmost to their rightmost canopy pixel
 // (SliceSection::lo_m / hi_m): a valve switches at the canopy's edge, not at the bin's, so the
 // bin's length (50 mm) does not add to the switch's error.
@@ -139,6 +141,7 @@ private:
     bool on = false;       // state after the planned commands
     double rate = 0;       // rate after the planned commands
     bool cand = false;     // off: a canopy run not yet min_canopy long
+    bool cand_open = false; // the run begins where the data begins: sprayed at any length
     double cand_start = 0, cand_end = 0;
     std::vector<Planned> cand_rates; // rate changes inside the candidate run
     bool in_gap = false;   // on: a gap not yet min_gap long
@@ -158,6 +161,7 @@ private:
   std::deque<Sample> samples_;
   bool have_frontier_ = false;
   double frontier_ = 0;
+  double data_start_ = 0; // the first slice's start (valid with have_frontier_)
   std::int64_t frame_ns_ = 0; // the last frame interval
   bool fallback_ = false;
   struct Valve {
