@@ -1076,8 +1076,9 @@ void driveby_sweep(const Options &o)
   std::printf("### Drive-by: spraycontrol's valve commands (defaults: a section per band of the "
               "map, nozzles 1.5 m behind, 160 ms valves)\n\n");
   std::printf("Truth per band: the near row's visible canopy (GroundTruth::row_points_mm of every "
-              "frame) between the band's heights, gaps under 75 mm closed, canopy under 100 mm "
-              "dropped, over the stretch from -1 m to the rig's last position. A switch's place "
+              "frame, those in the rectified left view) between the band's heights, gaps under 75 "
+              "mm closed, canopy under 100 mm dropped, over the stretch from -1 m to the rig's "
+              "last position. A switch's place "
               "is where the nozzle is when the valve has switched (the true rig position at at-ns "
               "+ latency, minus the offset). Targets: every switch within one frame's travel, "
               "gaps of 10 cm and more closed, sprayed length within 5 %% per section.\n\n");
