@@ -96,7 +96,7 @@ void validate(const RowMapParams &params);
 GroundPlane rig_ground(const StereoGeometry &geometry, double camera_height_mm, double pitch_deg);
 
 struct RowMapCell {
-  bool seen = false;     // a frame saw this cell
+  bool seen = false;     // a frame saw this cell (within its span)
   bool present = false;  // canopy in it (fill >= min_fill, or a present neighbour's end)
   double distance_m = 0; // near-face depth, when present
   double fill = 0;       // share of the cell covered by canopy (0..1)
@@ -153,7 +153,8 @@ public:
 
   // One row per bin (first_bin() to last_bin()) and band, under kCsvHeader: position_m (the
   // bin's centre, m), band, present (0/1), distance_m (empty when not present), fill, seen (0/1:
-  // no frame saw the cell, above or below the view; its present 0 says nothing of canopy).
+  // no frame saw the cell, above or below the view or outside every frame's span; its present
+  // 0 says nothing of canopy).
   // Throws std::runtime_error naming the path when it cannot be written.
   void write_csv(const std::string &path) const;
   static constexpr const char *kCsvHeader = "position_m,band,present,distance_m,fill,seen";
