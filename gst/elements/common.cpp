@@ -368,7 +368,9 @@ std::vector<PixelPoint> pixel_points_of(const GstTreeStereoPointsMeta *pm,
   const guint first_grid = pm->dense ? 0 : pm->n_points - n_grid;
   for (guint i = 0; i < pm->n_points; i++) {
     const GstTreeStereoPoint &p = pm->points[i];
-    if (!p.valid && !(p.z >= dropped_from_mm && p.z <= dropped_to_mm && dropped_from_mm < dropped_to_mm))
+    const bool dropped_in_range =
+        dropped_from_mm < dropped_to_mm && p.z >= dropped_from_mm && p.z <= dropped_to_mm;
+    if (!p.valid && !dropped_in_range)
       continue;
     PixelPoint q;
     if (i >= first_grid) { // a grid or dense point: match_index is the left pixel's index
