@@ -201,8 +201,11 @@ if [ -n "$late" ]; then
   echo "resume time: pairs resumed${late} s after a return (> $resume_limit s)"
 fi
 
-# --reconnect 0: the loss ends the run
+# --reconnect 0: the loss ends the run. Any error of either camera ends such a run, so both must
+# stream before it starts: the left one has just been released by the run above, and a loaded
+# host (the sanitizer stage) can leave it unready for a few seconds.
 restart_right
+fake_cameras_wait_for 127.0.0.1 || fail "the left fake camera does not stream again"
 fake_cameras_wait_for 127.0.0.2 || fail "the right fake camera does not stream again"
 : >"$tmp/r0.jsonl"
 "$measure" --camera-left 127.0.0.1 --camera-right 127.0.0.2 --calibration "$tmp/rig.yml" \
