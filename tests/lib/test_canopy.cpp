@@ -270,6 +270,46 @@ TEST(Canopy, ALeafClusterPeekingOutBehindTheFrontOneIsCanopy)
   EXPECT_LE(std::abs(cv::boundingRect(crown).br().x - c.silhouette.bbox.br().x), 5);
 }
 
+TEST(Canopy, AFewSamplesOnADeepClusterBelowTheCrownAreCanopy)
+{
+  // A crown (1.65 m at its front, its limbs about 1.94 m) before a wall 4.5 m away, and a leaf
+  // cluster 0.4 m deeper, low near the trunk, that reaches below the crown's outline. Its
+  // surface gives a few samples only (dark leaves: every third grid point matched), too few to
+  // make a layer of their own in the depth histogram. They lie in the empty stretch between the
+  // crown and the wall, much nearer the crown: they are the crown's, and so is the cluster.
+  Scene s;
+  s.wall_z = 4500;
+  s.spheres.push_back({cv::Vec3d(0, 0, 2000), 350});
+  s.spheres.push_back({cv::Vec3d(0, 330, 2150), 90});
+  const Rendered r = render(s);
+  const cv::Mat deep = object_mask(r.objects, 1), crown = deep | object_mask(r.objects, 0);
+  std::vector<PixelPoint> pts;
+  std::vector<std::size_t> on_deep;
+  int k = 0;
+  for (const PixelPoint &q : grid_points(r.objects, r.points, 8)) {
+    if (r.objects.at<int>(cv::Point(q.px)) == 1) {
+      if (k++ % 3)
+        continue;
+      on_deep.push_back(pts.size());
+    }
+    pts.push_back(q);
+  }
+  ASSERT_GE(on_deep.size(), 2u);
+  // The cluster reaches below the crown's outline by more than a sample spacing.
+  const int below = cv::boundingRect(crown).br().y - cv::boundingRect(object_mask(r.objects, 0)).br().y;
+  ASSERT_GT(below, 10);
+
+  const CanopyResult c = select_canopy(r.vegetation, pts, s.g, CanopyParams{}, r.left, r.right);
+  ASSERT_TRUE(c.present);
+  for (std::size_t i : on_deep)
+    EXPECT_EQ(c.classes[i], PointClass::Canopy) << pts[i].p.z;
+  EXPECT_LT(c.far_mm, 4000);
+  // The canopy reaches the cluster's bottom, and the wall stays out.
+  EXPECT_LE(std::abs(cv::boundingRect(crown).br().y - c.silhouette.bbox.br().y), 2);
+  EXPECT_GT(cv::countNonZero(c.silhouette.mask & deep), 0.8 * cv::countNonZero(deep));
+  EXPECT_GT(iou(c.silhouette.mask, crown), 0.97);
+}
+
 TEST(Canopy, StandingOnAGreenGroundPlane)
 {
   Scene s;

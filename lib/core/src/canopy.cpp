@@ -520,8 +520,8 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
     std::vector<double> hist(std::size_t(nb), 0.0);
     for (std::size_t k = 0; k < rest.size(); ++k)
       hist[std::size_t((P(rest[k]).z - zmin) / p.layer_bin_mm)] += w[k];
-    const auto runs = occupied_runs(hist, 0.002 * total,
-                                    std::max(1, int(std::lround(p.layer_gap_mm / p.layer_bin_mm))));
+    const int gap_bins = std::max(1, int(std::lround(p.layer_gap_mm / p.layer_bin_mm)));
+    const auto runs = occupied_runs(hist, 0.002 * total, gap_bins);
     int chosen = -1;
     double best_w = -1;
     int best = -1;
@@ -542,10 +542,15 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       chosen = best;
     if (chosen < 0)
       return r;
-    const int last = std::min(runs[std::size_t(chosen)][1],
-                              runs[std::size_t(chosen)][0] + int(p.max_row_depth_mm / p.layer_bin_mm));
+    const int cap = runs[std::size_t(chosen)][0] + int(p.max_row_depth_mm / p.layer_bin_mm);
+    const int last = std::min(runs[std::size_t(chosen)][1], cap);
     r.near_mm = zmin + (runs[std::size_t(chosen)][0] - 1) * p.layer_bin_mm;
-    r.far_mm = zmin + (last + 2) * p.layer_bin_mm;
+    // Behind the layer lies an empty stretch of at least gap_bins: a point within its first half
+    // (too few to occupy a bin: a leaf cluster deep in a crown, seen through a hole) is nearer
+    // the layer than anything behind it, and is the layer's. A layer cut at max_row_depth_mm
+    // goes on behind the cut: it ends two bins past it.
+    r.far_mm = zmin + (last < runs[std::size_t(chosen)][1] ? last + 2 : last + 1 + gap_bins / 2) *
+                          p.layer_bin_mm;
   }
   std::vector<int> zone;
   std::vector<double> zw;

@@ -8,8 +8,8 @@
 //     Points less than min_height_mm above it are ground (grass), not canopy.
 //  2. The near row: the nearest dominant depth layer of the remaining points (a histogram of
 //     their depths, each point weighted by the image area it stands for), from its front to
-//     the first empty stretch of layer_gap_mm behind it; or the user's spray zone
-//     [near_mm, far_mm].
+//     the first empty stretch of layer_gap_mm behind it, and halfway into that stretch; or the
+//     user's spray zone [near_mm, far_mm].
 //  3. Along the row (mode Tree): the near row's points, projected onto x (metres), fall into
 //     segments separated by empty stretches of at least min_gap_mm. The tree in front is the
 //     segment that holds the optical axis, or else the one nearest to it. Mode Row keeps every
