@@ -522,12 +522,14 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       hist[std::size_t((P(rest[k]).z - zmin) / p.layer_bin_mm)] += w[k];
     const int gap_bins = std::max(1, int(std::lround(p.layer_gap_mm / p.layer_bin_mm)));
     const auto runs = occupied_runs(hist, 0.002 * total, gap_bins);
+    // A run longer than a row is cut at max_row_depth_mm behind its front: its last bin.
+    const int row_bins = int(p.max_row_depth_mm / p.layer_bin_mm);
+    const auto run_end = [&](const cv::Vec2i &run) { return std::min(run[1], run[0] + row_bins); };
     int chosen = -1;
     double best_w = -1;
     int best = -1;
     for (std::size_t k = 0; k < runs.size(); ++k) {
-      // A run longer than a row is cut at max_row_depth_mm behind its front.
-      const int last = std::min(runs[k][1], runs[k][0] + int(p.max_row_depth_mm / p.layer_bin_mm));
+      const int last = run_end(runs[k]);
       double sum = 0;
       for (int b = runs[k][0]; b <= last; ++b)
         sum += hist[std::size_t(b)];
@@ -542,15 +544,14 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       chosen = best;
     if (chosen < 0)
       return r;
-    const int cap = runs[std::size_t(chosen)][0] + int(p.max_row_depth_mm / p.layer_bin_mm);
-    const int last = std::min(runs[std::size_t(chosen)][1], cap);
-    r.near_mm = zmin + (runs[std::size_t(chosen)][0] - 1) * p.layer_bin_mm;
+    const cv::Vec2i &run = runs[std::size_t(chosen)];
+    const int last = run_end(run);
+    r.near_mm = zmin + (run[0] - 1) * p.layer_bin_mm;
     // Behind the layer lies an empty stretch of at least gap_bins: a point within its first half
     // (too few to occupy a bin: a leaf cluster deep in a crown, seen through a hole) is nearer
     // the layer than anything behind it, and is the layer's. A layer cut at max_row_depth_mm
     // goes on behind the cut: it ends two bins past it.
-    r.far_mm = zmin + (last < runs[std::size_t(chosen)][1] ? last + 2 : last + 1 + gap_bins / 2) *
-                          p.layer_bin_mm;
+    r.far_mm = zmin + (last < run[1] ? last + 2 : last + 1 + gap_bins / 2) * p.layer_bin_mm;
   }
   std::vector<int> zone;
   std::vector<double> zw;
