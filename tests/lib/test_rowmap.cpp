@@ -477,6 +477,46 @@ TEST(RowMap, ARoundCrownsCapReachesItsLimb)
   EXPECT_NEAR(hi_m, hi / 1000, 0.01);
 }
 
+TEST(RowMap, ACapAFewMillimetresIntoABandIsPresent)
+{
+  // A crown whose top rises 14 mm into the top band (1.3-1.6 m), its visible surface about 10:
+  // its cap there is 165 mm long along the row and fills at most 2 % of a cell's 300 mm, under
+  // min_fill over the whole cap. It is the crown going on from the band below, not a speck:
+  // present as one stretch. A column counts where the cap holds 3 pixel rows of the band (6 mm
+  // at 2.3 m here); the cap's last 2-3 cm at each end are thinner, and come in only where they
+  // reach into a present neighbour's bin.
+  const Sphere crown{2000, 964, 2350, 350};
+  const StereoGeometry g = camera();
+  RowMap map;
+  for (double pos = 1000; pos <= 3000; pos += 100) {
+    const View v = cast_sphere(g, crown, pos);
+    map.add_frame(v.mask, v.points, g, level_ground(), pos);
+  }
+  double lo_m = 0, hi_m = 0;
+  long first = 0, last = -1;
+  for (long b = map.first_bin(); b <= map.last_bin(); ++b) {
+    const RowMapCell c = map.cell(b, 3);
+    EXPECT_LT(c.fill, RowMapParams().min_fill) << b;
+    if (c.present) {
+      if (last < first)
+        first = b, lo_m = c.lo_m;
+      EXPECT_EQ(b, last < first ? first : last + 1) << "one stretch";
+      last = b;
+      hi_m = c.hi_m;
+    }
+  }
+  ASSERT_GE(last, first) << "the cap is missing";
+  auto frame_of = [](long b) { return std::round((b + 0.5) * 50 / 100) * 100; };
+  double lo = 0, hi = 0, unused = 0;
+  visible_extent(crown, frame_of(first), 1300, 1600, lo, unused);
+  visible_extent(crown, frame_of(last), 1300, 1600, unused, hi);
+  EXPECT_GT(hi - lo, 150); // the truth: a cap worth spraying (min_canopy 100 mm)
+  EXPECT_GE(lo_m, lo / 1000 - 0.005);
+  EXPECT_LE(lo_m, lo / 1000 + 0.035);
+  EXPECT_LE(hi_m, hi / 1000 + 0.005);
+  EXPECT_GE(hi_m, hi / 1000 - 0.035);
+}
+
 TEST(RowMap, GapShowsAtFasterTravelToo)
 {
   // 2 m/s at 7 frames/s: 286 mm a frame.

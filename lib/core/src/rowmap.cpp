@@ -36,6 +36,9 @@ constexpr double kTouchBins = 0.2;
 // (the depth of a strip of columns is one depth).
 constexpr int kVotes = 2;
 constexpr double kVoteSlope = 0.1;
+// Canopy rows a crown's cap needs in a band, going on from the band beside it, to be present
+// there whatever its fill (RowMap::add_frame).
+constexpr int kCrossRows = 3;
 // Strips without points take the depth of the nearest strip with points within this many
 // strips; farther out, the canopy's median depth.
 constexpr int kStripReach = 6;
@@ -391,6 +394,14 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   std::vector<double> min_z(std::size_t(nbins * nb), std::numeric_limits<double>::infinity());
   std::vector<double> lo_x(std::size_t(nbins * nb), std::numeric_limits<double>::infinity());
   std::vector<double> hi_x(std::size_t(nbins * nb), -std::numeric_limits<double>::infinity());
+  // Along the row, the columns where the canopy goes on from the band beside a cell into it
+  // (consecutive canopy rows in two bands) for kCrossRows rows or more: a crown's cap rising
+  // into the band (a row alone may be a pixel's spill across the band's edge).
+  std::vector<double> cross_lo(lo_x), cross_hi(hi_x);
+  auto mark_cross = [&](long c, double x, double half_px) {
+    cross_lo[std::size_t(c)] = std::min(cross_lo[std::size_t(c)], x - half_px);
+    cross_hi[std::size_t(c)] = std::max(cross_hi[std::size_t(c)], x + half_px);
+  };
   // The cells' pixels (total) are counted at the strip's depth: one depth down each column, so
   // a column's rows tile the bands without overlap. Canopy pixels are placed at their block's
   // depth, where the canopy is, each weighing the area it covers there in pixels at the strip's
@@ -434,12 +445,20 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       below_v = below.valid() ? f.v0 : H;
     }
     double wx = 0;
+    // The run of canopy rows down the column in one band: its cell, its length, and whether it
+    // began where the canopy crossed from the band above (at world x cross_x).
+    long run_c = -1;
+    int run_rows = 0;
+    bool run_crossed = false;
+    double cross_x = 0, cross_half = 0;
     for (int v = 0; v < H; ++v) {
       const long c_all = cell_of(u, v, z_col, wx);
       if (c_all >= 0)
         ++total[std::size_t(c_all)];
-      if (!mask.at<uchar>(v, u))
+      if (!mask.at<uchar>(v, u)) {
+        run_c = -1;
         continue;
+      }
       const std::size_t blk = strip + std::size_t(v / block_rows);
       double z = block_z[blk] > 0 ? block_z[blk] : z_col;
       if (v < above_v)
@@ -449,9 +468,27 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       else if (fit[blk].valid())
         z = fit[blk].at(v);
       const long c = z != z_col ? cell_of(u, v, z, wx) : c_all;
-      if (c < 0)
+      if (c < 0) {
+        run_c = -1;
         continue;
+      }
       const double half_px = 0.5 * z / fx; // a column covers wx +- half a pixel along the row
+      if (run_c >= 0 && run_c % nb != c % nb) { // into the next band down
+        if (run_rows >= kCrossRows)
+          mark_cross(run_c, cross_x, cross_half); // the band above rose into its cell
+        run_crossed = true;
+        run_rows = 0;
+        cross_x = wx;
+        cross_half = half_px;
+      } else if (run_c < 0) {
+        run_crossed = false;
+        run_rows = 0;
+        cross_x = wx;
+        cross_half = half_px;
+      }
+      run_c = c;
+      if (++run_rows == kCrossRows && run_crossed)
+        mark_cross(c, cross_x, cross_half); // hanging down into this band
       canopy[std::size_t(c)] += (z / z_col) * (z / z_col);
       min_z[std::size_t(c)] = std::min(min_z[std::size_t(c)], z);
       lo_x[std::size_t(c)] = std::min(lo_x[std::size_t(c)], wx - half_px);
@@ -487,7 +524,8 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         continue;
       // Canopy placed at its own depth may outnumber the cell's pixels at the strip's.
       cell.fill = std::min(1.0, canopy[c] / total[c]);
-      cell.present = canopy[c] > 0 && cell.fill >= params_.min_fill;
+      cell.present = canopy[c] > 0 && (cell.fill >= params_.min_fill ||
+                                        cross_hi[c] - cross_lo[c] > kTouchBins * bin);
       if (canopy[c] > 0) { // also under min_fill: cell() may find it a present cell's end
         cell.distance_m =
             (cell_z[c].empty() ? min_z[c] : percentile(cell_z[c], 5.0)) * kMmToM;

@@ -34,12 +34,18 @@
 //  - lo_m / hi_m: the world x of its leftmost and rightmost canopy pixel columns;
 //  - distance_m: the near face, the 5th percentile of the depths of the points in the cell, or,
 //    without points, the smallest column depth of its canopy pixels.
-//  - present: fill >= min_fill; or canopy under it that goes on into a present neighbour's
-//    (on either side: both reach their common edge within a fifth of a bin) and reaches more
-//    than a fifth of a bin into the cell. That is the end of a crown that enters the band with
-//    a sliver of its cap: a round cap stays within min_fill of the band's edge over some
-//    centimetres along the row (docs/results.md "Where the drive-by's remaining misses come
-//    from"). min_fill keeps specks out, not the canopy's own ends. cell() decides it, so a
+//  - present: fill >= min_fill; or, under it, canopy that goes on into the cell from the band
+//    above or below it (consecutive canopy rows of a column in both) and holds 3 rows or more
+//    of the cell's band, in columns that span more than a fifth of a bin along the row. That is
+//    a crown's cap a few millimetres into the band: a cap 10 mm into a 300 mm band fills 2 % of
+//    it at most, and caps under min_fill were a top band's missing stretches (docs/results.md
+//    "A crown's cap a few millimetres into a band"). One or two rows may be a pixel's spill, or
+//    where the limb's depth model (below) places a flat top's edge (4 mm at 2.2 m), across the
+//    band's edge. A speck has no canopy beside it across a band's edge. Or, under min_fill,
+//    canopy that goes on into a present neighbour's (on either side: both reach their common
+//    edge within a fifth of a bin) and reaches more than a fifth of a bin into the cell: the
+//    cap's thin ends, under 3 rows (docs/results.md "Where the drive-by's remaining misses come
+//    from"). min_fill keeps specks out, not the canopy's own ends. cell() decides the last, so a
 //    bin's presence is known once its neighbours are final too.
 // Each bin (all bands) is taken from the frame that sees the bin's centre nearest the image
 // centre, among the frames that see the whole bin: there a depth error moves a pixel least
@@ -97,7 +103,8 @@ GroundPlane rig_ground(const StereoGeometry &geometry, double camera_height_mm, 
 
 struct RowMapCell {
   bool seen = false;     // a frame saw this cell (within its span)
-  bool present = false;  // canopy in it (fill >= min_fill, or a present neighbour's end)
+  bool present = false;  // canopy in it (fill >= min_fill, a cap from the band beside it, or a
+                         // present neighbour's end)
   double distance_m = 0; // near-face depth, when present
   double fill = 0;       // share of the cell covered by canopy (0..1)
   // Where along the row its canopy pixels lie (world x, m), when present: a sprayer's section
