@@ -36,7 +36,7 @@ constexpr double kTouchBins = 0.2;
 // (the depth of a strip of columns is one depth).
 constexpr int kVotes = 2;
 constexpr double kVoteSlope = 0.1;
-// Canopy rows a crown's cap needs in a band, going on from the band beside it, to be present
+// Canopy rows a crown's cap needs in a band, rising into it from the band below, to be present
 // there whatever its fill (RowMap::add_frame).
 constexpr int kCrossRows = 3;
 // Strips without points take the depth of the nearest strip with points within this many
@@ -394,9 +394,9 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   std::vector<double> min_z(std::size_t(nbins * nb), std::numeric_limits<double>::infinity());
   std::vector<double> lo_x(std::size_t(nbins * nb), std::numeric_limits<double>::infinity());
   std::vector<double> hi_x(std::size_t(nbins * nb), -std::numeric_limits<double>::infinity());
-  // Along the row, the columns where the canopy goes on from the band beside a cell into it
-  // (consecutive canopy rows in two bands) for kCrossRows rows or more: a crown's cap rising
-  // into the band (a row alone may be a pixel's spill across the band's edge).
+  // Along the row, the columns where the canopy rises into a cell from the band below it
+  // (consecutive canopy rows in both) for kCrossRows rows or more: a crown's cap (a row alone
+  // may be a pixel's spill across the band's edge).
   std::vector<double> cross_lo(lo_x), cross_hi(hi_x);
   auto mark_cross = [&](long c, double x, double half_px) {
     cross_lo[std::size_t(c)] = std::min(cross_lo[std::size_t(c)], x - half_px);
@@ -445,12 +445,11 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
       below_v = below.valid() ? f.v0 : H;
     }
     double wx = 0;
-    // The run of canopy rows down the column in one band: its cell, its length, and whether it
-    // began where the canopy crossed from the band above (at world x cross_x).
+    // The run of canopy rows down the column in one band: its cell, its length, and the world x
+    // of its first pixel.
     long run_c = -1;
     int run_rows = 0;
-    bool run_crossed = false;
-    double cross_x = 0, cross_half = 0;
+    double run_x = 0, run_half = 0;
     for (int v = 0; v < H; ++v) {
       const long c_all = cell_of(u, v, z_col, wx);
       if (c_all >= 0)
@@ -473,22 +472,15 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         continue;
       }
       const double half_px = 0.5 * z / fx; // a column covers wx +- half a pixel along the row
-      if (run_c >= 0 && run_c % nb != c % nb) { // into the next band down
-        if (run_rows >= kCrossRows)
-          mark_cross(run_c, cross_x, cross_half); // the band above rose into its cell
-        run_crossed = true;
+      if (run_c >= 0 && run_c % nb != c % nb && run_rows >= kCrossRows)
+        mark_cross(run_c, run_x, run_half); // the canopy below rose into the run's cell
+      if (run_c < 0 || run_c % nb != c % nb) {
         run_rows = 0;
-        cross_x = wx;
-        cross_half = half_px;
-      } else if (run_c < 0) {
-        run_crossed = false;
-        run_rows = 0;
-        cross_x = wx;
-        cross_half = half_px;
+        run_x = wx;
+        run_half = half_px;
       }
       run_c = c;
-      if (++run_rows == kCrossRows && run_crossed)
-        mark_cross(c, cross_x, cross_half); // hanging down into this band
+      ++run_rows;
       canopy[std::size_t(c)] += (z / z_col) * (z / z_col);
       min_z[std::size_t(c)] = std::min(min_z[std::size_t(c)], z);
       lo_x[std::size_t(c)] = std::min(lo_x[std::size_t(c)], wx - half_px);

@@ -34,19 +34,21 @@
 //  - lo_m / hi_m: the world x of its leftmost and rightmost canopy pixel columns;
 //  - distance_m: the near face, the 5th percentile of the depths of the points in the cell, or,
 //    without points, the smallest column depth of its canopy pixels.
-//  - present: fill >= min_fill; or, under it, canopy that goes on into the cell from the band
-//    above or below it (consecutive canopy rows of a column in both) and holds 3 rows or more
-//    of the cell's band, in columns that span more than a fifth of a bin along the row. That is
-//    a crown's cap a few millimetres into the band: a cap 10 mm into a 300 mm band fills 2 % of
-//    it at most, and caps under min_fill were a top band's missing stretches (docs/results.md
+//  - present: fill >= min_fill; or, under it, canopy that rises into the cell from the band
+//    below it (consecutive canopy rows of a column in both) and holds 3 rows or more of the
+//    cell's band, in columns that span more than a fifth of a bin along the row. That is a
+//    crown's cap a few millimetres into the band: a cap 10 mm into a 300 mm band fills 2 % of it
+//    at most, and caps under min_fill were a top band's missing stretches (docs/results.md
 //    "A crown's cap a few millimetres into a band"). One or two rows may be a pixel's spill, or
 //    where the limb's depth model (below) places a flat top's edge (4 mm at 2.2 m), across the
-//    band's edge. A speck has no canopy beside it across a band's edge. Or, under min_fill,
-//    canopy that goes on into a present neighbour's (on either side: both reach their common
-//    edge within a fifth of a bin) and reaches more than a fifth of a bin into the cell: the
-//    cap's thin ends, under 3 rows (docs/results.md "Where the drive-by's remaining misses come
-//    from"). min_fill keeps specks out, not the canopy's own ends. cell() decides the last, so a
-//    bin's presence is known once its neighbours are final too.
+//    band's edge. A speck has no canopy under it across a band's edge. Not downwards: placed
+//    by the lower limb's arc, the undersides of two touching crowns hung 3 rows into the band
+//    below across the gap between their lower parts, and a 15 cm gap there was lost. Or, under
+//    min_fill, canopy that goes on into a present neighbour's (on either side: both reach their
+//    common edge within a fifth of a bin) and reaches more than a fifth of a bin into the cell:
+//    the cap's thin ends, under 3 rows (docs/results.md "Where the drive-by's remaining misses
+//    come from"). min_fill keeps specks out, not the canopy's own ends. cell() decides the
+//    last, so a bin's presence is known once its neighbours are final too.
 // Each bin (all bands) is taken from the frame that sees the bin's centre nearest the image
 // centre, among the frames that see the whole bin: there a depth error moves a pixel least
 // along the row (X = Z * (u - cx) / fx, and (u - cx) is smallest), the crown's side is least
