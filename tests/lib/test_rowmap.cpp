@@ -446,35 +446,55 @@ void visible_extent(const Sphere &s, double position_mm, double h0, double h1, d
     }
 }
 
-TEST(RowMap, ARoundCrownsCapReachesItsLimb)
+// The top band (1.3-1.6 m) of a crown's map, seen by frames every 100 mm from 1 to 3 m: its
+// present bins (first to last; none when last < first), whether they are one stretch, the
+// fullest cell's fill, the canopy's extent along them (m: the first's lo_m to the last's hi_m), and the truth's: the
+// visible surface's extent within the band (mm), each end as the frame the map takes its bin
+// from sees it, the one nearest the bin's centre.
+struct TopBand {
+  long first = 0, last = -1;
+  bool one_stretch = true;
+  double max_fill = 0;
+  double lo_m = 0, hi_m = 0;
+  double true_lo_mm = 0, true_hi_mm = 0;
+};
+
+TopBand top_band_of(const Sphere &crown, const RowMapParams &params)
 {
-  const Sphere crown{2000, 1050, 2350, 350};
-  RowMapParams params;
-  params.min_fill = 0; // every canopy pixel counts: the cap thins to nothing at its ends
   const StereoGeometry g = camera();
   RowMap map(params);
   for (double pos = 1000; pos <= 3000; pos += 100) {
     const View v = cast_sphere(g, crown, pos);
     map.add_frame(v.mask, v.points, g, level_ground(), pos);
   }
-  // The top band's extent: its first and last present bins' edges.
-  double lo_m = 0, hi_m = 0;
-  long first = 0, last = -1;
-  for (long b = map.first_bin(); b <= map.last_bin(); ++b)
-    if (map.cell(b, 3).present) {
-      if (last < first)
-        first = b, lo_m = map.cell(b, 3).lo_m;
-      last = b;
-      hi_m = map.cell(b, 3).hi_m;
-    }
-  ASSERT_GE(last, first);
-  // Each end as seen by the frame the map takes its bin from: the one nearest the bin's centre.
+  TopBand t;
+  for (long b = map.first_bin(); b <= map.last_bin(); ++b) {
+    const RowMapCell c = map.cell(b, 3);
+    t.max_fill = std::max(t.max_fill, c.fill);
+    if (!c.present)
+      continue;
+    if (t.last < t.first)
+      t.first = b, t.lo_m = c.lo_m;
+    else
+      t.one_stretch = t.one_stretch && b == t.last + 1;
+    t.last = b;
+    t.hi_m = c.hi_m;
+  }
   auto frame_of = [](long b) { return std::round((b + 0.5) * 50 / 100) * 100; };
-  double lo = 0, hi = 0, unused = 0;
-  visible_extent(crown, frame_of(first), 1300, 1600, lo, unused);
-  visible_extent(crown, frame_of(last), 1300, 1600, unused, hi);
-  EXPECT_NEAR(lo_m, lo / 1000, 0.01);
-  EXPECT_NEAR(hi_m, hi / 1000, 0.01);
+  double unused = 0;
+  visible_extent(crown, frame_of(t.first), 1300, 1600, t.true_lo_mm, unused);
+  visible_extent(crown, frame_of(t.last), 1300, 1600, unused, t.true_hi_mm);
+  return t;
+}
+
+TEST(RowMap, ARoundCrownsCapReachesItsLimb)
+{
+  RowMapParams params;
+  params.min_fill = 0; // every canopy pixel counts: the cap thins to nothing at its ends
+  const TopBand t = top_band_of(Sphere{2000, 1050, 2350, 350}, params);
+  ASSERT_GE(t.last, t.first);
+  EXPECT_NEAR(t.lo_m, t.true_lo_mm / 1000, 0.01);
+  EXPECT_NEAR(t.hi_m, t.true_hi_mm / 1000, 0.01);
 }
 
 TEST(RowMap, ACapAFewMillimetresIntoABandIsPresent)
@@ -486,35 +506,15 @@ TEST(RowMap, ACapAFewMillimetresIntoABandIsPresent)
   // at 2.3 m here); the cap's last 2-3 cm at each end are thinner, and come in only where they
   // reach into a present neighbour's bin.
   const Sphere crown{2000, 964, 2350, 350};
-  const StereoGeometry g = camera();
-  RowMap map;
-  for (double pos = 1000; pos <= 3000; pos += 100) {
-    const View v = cast_sphere(g, crown, pos);
-    map.add_frame(v.mask, v.points, g, level_ground(), pos);
-  }
-  double lo_m = 0, hi_m = 0;
-  long first = 0, last = -1;
-  for (long b = map.first_bin(); b <= map.last_bin(); ++b) {
-    const RowMapCell c = map.cell(b, 3);
-    EXPECT_LT(c.fill, RowMapParams().min_fill) << b;
-    if (c.present) {
-      if (last < first)
-        first = b, lo_m = c.lo_m;
-      EXPECT_EQ(b, last < first ? first : last + 1) << "one stretch";
-      last = b;
-      hi_m = c.hi_m;
-    }
-  }
-  ASSERT_GE(last, first) << "the cap is missing";
-  auto frame_of = [](long b) { return std::round((b + 0.5) * 50 / 100) * 100; };
-  double lo = 0, hi = 0, unused = 0;
-  visible_extent(crown, frame_of(first), 1300, 1600, lo, unused);
-  visible_extent(crown, frame_of(last), 1300, 1600, unused, hi);
-  EXPECT_GT(hi - lo, 150); // the truth: a cap worth spraying (min_canopy 100 mm)
-  EXPECT_GE(lo_m, lo / 1000 - 0.005);
-  EXPECT_LE(lo_m, lo / 1000 + 0.035);
-  EXPECT_LE(hi_m, hi / 1000 + 0.005);
-  EXPECT_GE(hi_m, hi / 1000 - 0.035);
+  const TopBand t = top_band_of(crown, RowMapParams());
+  EXPECT_LT(t.max_fill, RowMapParams().min_fill);
+  ASSERT_GE(t.last, t.first) << "the cap is missing";
+  EXPECT_TRUE(t.one_stretch);
+  EXPECT_GT(t.true_hi_mm - t.true_lo_mm, 150); // a cap worth spraying (min_canopy 100 mm)
+  EXPECT_GE(t.lo_m, t.true_lo_mm / 1000 - 0.005);
+  EXPECT_LE(t.lo_m, t.true_lo_mm / 1000 + 0.035);
+  EXPECT_LE(t.hi_m, t.true_hi_mm / 1000 + 0.005);
+  EXPECT_GE(t.hi_m, t.true_hi_mm / 1000 - 0.035);
 }
 
 TEST(RowMap, GapShowsAtFasterTravelToo)

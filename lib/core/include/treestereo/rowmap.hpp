@@ -105,7 +105,7 @@ GroundPlane rig_ground(const StereoGeometry &geometry, double camera_height_mm, 
 
 struct RowMapCell {
   bool seen = false;     // a frame saw this cell (within its span)
-  bool present = false;  // canopy in it (fill >= min_fill, a cap from the band beside it, or a
+  bool present = false;  // canopy in it (fill >= min_fill, a cap rising from the band below, or a
                          // present neighbour's end)
   double distance_m = 0; // near-face depth, when present
   double fill = 0;       // share of the cell covered by canopy (0..1)
