@@ -448,9 +448,9 @@ void visible_extent(const Sphere &s, double position_mm, double h0, double h1, d
 
 // The top band (1.3-1.6 m) of a crown's map, seen by frames every 100 mm from 1 to 3 m: its
 // present bins (first to last; none when last < first), whether they are one stretch, the
-// fullest cell's fill, the canopy's extent along them (m: the first's lo_m to the last's hi_m), and the truth's: the
-// visible surface's extent within the band (mm), each end as the frame the map takes its bin
-// from sees it, the one nearest the bin's centre.
+// fullest cell's fill, the canopy's extent along them (m: the first's lo_m to the last's
+// hi_m), and the truth's: the visible surface's extent within the band (mm), each end as the
+// frame the map takes its bin from sees it, the one nearest the bin's centre.
 struct TopBand {
   long first = 0, last = -1;
   bool one_stretch = true;

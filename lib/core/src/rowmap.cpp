@@ -472,9 +472,9 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         continue;
       }
       const double half_px = 0.5 * z / fx; // a column covers wx +- half a pixel along the row
-      if (run_c >= 0 && run_c % nb != c % nb && run_rows >= kCrossRows)
-        mark_cross(run_c, run_x, run_half); // the canopy below rose into the run's cell
-      if (run_c < 0 || run_c % nb != c % nb) {
+      if (run_c < 0 || run_c % nb != c % nb) { // a new run
+        if (run_c >= 0 && run_rows >= kCrossRows)
+          mark_cross(run_c, run_x, run_half); // the canopy below rose into the run's cell
         run_rows = 0;
         run_x = wx;
         run_half = half_px;
