@@ -99,10 +99,15 @@ const gchar *kSummary =
     "a lost camera with --reconnect 0) or an output that cannot be written (disk full), 2 on a\n"
     "usage error.";
 
+// A usage error unwinds to main (exit status 2), so that what the run made so far, such as the
+// synthetic rig's temporary calibration, is removed on the way.
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 [[noreturn]] void usage_error(const std::string &msg)
 {
-  std::fprintf(stderr, "treestereo-measure: %s (see --help)\n", msg.c_str());
-  std::exit(2);
+  throw UsageError(msg);
 }
 
 bool parse_size(const char *s, int &w, int &h)
@@ -1117,6 +1122,9 @@ int main(int argc, char **argv)
   int status = 1;
   try {
     status = run(argc, argv);
+  } catch (const UsageError &e) {
+    std::fprintf(stderr, "treestereo-measure: %s (see --help)\n", e.what());
+    status = 2;
   } catch (const std::exception &e) {
     std::fprintf(stderr, "treestereo-measure: %s\n", e.what());
   }

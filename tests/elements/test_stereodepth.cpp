@@ -14,6 +14,7 @@
 #include <gst/check/gstcheck.h>
 #include <gst/check/gstharness.h>
 #include "expect_error.h"
+#include "../common/temp_dir.hpp"
 #include <gst/treestereo/treestereo-meta.h>
 #include <gst/video/video.h>
 
@@ -659,13 +660,11 @@ const char *kOrchardCaps = "video/x-raw,format=RGB,width=640,height=480";
 /* A rig calibration written by treetestsrc once per process (the orchard's cameras). */
 std::string orchard_calibration()
 {
+  static const TempDir dir("stereodepth");
   static std::string path;
   if (!path.empty())
     return path;
-  gchar *dir = g_dir_make_tmp("stereodepth-XXXXXX", nullptr);
-  fail_unless(dir != nullptr);
-  path = std::string(dir) + "/rig.yml";
-  g_free(dir);
+  path = dir.file("rig.yml");
   const std::string desc = "treetestsrc view=left scene=orchard seed=3 num-buffers=1 "
                            "calibration-out=" + path + " ! " + kOrchardCaps + " ! fakesink";
   GError *err = nullptr;

@@ -7,6 +7,8 @@
 #include "treestereo/scene.hpp"
 #include "treestereo/stats.hpp"
 
+#include "../common/temp_dir.hpp"
+
 #include <cmath>
 #include <cstring>
 #include <cstdio>
@@ -209,14 +211,8 @@ const int kSeed = 3;
 
 std::string tmp_dir()
 {
-  static std::string dir;
-  if (dir.empty()) {
-    gchar *d = g_dir_make_tmp("treemetrics-row-XXXXXX", nullptr);
-    fail_unless(d != nullptr);
-    dir = d;
-    g_free(d);
-  }
-  return dir;
+  static const TempDir dir("treemetrics-row");
+  return dir.path();
 }
 
 std::string caps_of(int w, int h)

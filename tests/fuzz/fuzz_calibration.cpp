@@ -9,6 +9,8 @@
 // behaviour or a calibration that does not survive save + load again is a bug.
 #include "treestereo/calibration_file.hpp"
 
+#include "../common/temp_dir.hpp"
+
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -23,14 +25,9 @@ namespace {
 
 const std::filesystem::path &work_dir()
 {
-  static const std::filesystem::path dir = [] {
-    char tmpl[] = "/tmp/treestereo-fuzz-calib-XXXXXX";
-    const char *d = mkdtemp(tmpl);
-    if (!d)
-      std::abort();
-    return std::filesystem::path(d);
-  }();
-  return dir;
+  static const TempDir dir("treestereo-fuzz-calib");
+  static const std::filesystem::path path(dir.path());
+  return path;
 }
 
 std::string write(const std::string &name, const std::string &content)

@@ -1,5 +1,7 @@
 #include "treestereo/calibration_file.hpp"
 
+#include "../common/temp_dir.hpp"
+
 #include <gtest/gtest.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -9,28 +11,11 @@
 #include <fstream>
 #include <functional>
 #include <limits>
-#include <random>
 
 using namespace treestereo;
 namespace fs = std::filesystem;
 
 namespace {
-
-// A fresh directory per test, removed afterwards.
-class TempDir {
-public:
-  TempDir()
-  {
-    std::random_device rd;
-    path_ = fs::temp_directory_path() / ("treestereo-calib-" + std::to_string(rd()));
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string file(const std::string &name) const { return (path_ / name).string(); }
-
-private:
-  fs::path path_;
-};
 
 void write_text(const std::string &path, const std::string &text)
 {
@@ -165,7 +150,7 @@ TEST(Calibration, ExampleMer500Loads)
 
 TEST(Calibration, ReadsOpenCvLayoutYamlAndXml)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   StereoCalibration rig = make_rig();
   add_rectification(rig);
   for (const char *name : {"stereo.yml", "stereo.xml", "stereo.yaml.gz", "stereo.xml.gz"}) {
@@ -181,7 +166,7 @@ TEST(Calibration, ReadsOpenCvLayoutYamlAndXml)
 
 TEST(Calibration, RoundTripsThroughSave)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   StereoCalibration rig = make_rig();
   add_rectification(rig);
   rig.pixel_size_um = 3.45;
@@ -202,7 +187,7 @@ TEST(Calibration, RoundTripsThroughSave)
 
 TEST(Calibration, ReadsOpenCvSampleSplitFiles)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   StereoCalibration rig = make_rig();
   add_rectification(rig);
   {
@@ -228,7 +213,7 @@ TEST(Calibration, ReadsOpenCvSampleSplitFiles)
 
 TEST(Calibration, ReadsRosCameraInfoPair)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   StereoCalibration rig = make_rig();
   add_rectification(rig);
   write_text(dir.file("left.yaml"), ros_camera("left", rig.image_size, rig.M1, rig.D1, rig.R1, rig.P1));
@@ -273,14 +258,14 @@ TEST(Calibration, ReadsRosCameraInfoPair)
 
 TEST(CalibrationErrors, MissingKey)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   write_opencv(dir.file("c.yml"), make_rig(), "R");
   expect_error([&] { load_calibration(dir.file("c.yml")); }, "c.yml", "R", "missing key");
 }
 
 TEST(CalibrationErrors, WrongMatrixShape)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   StereoCalibration rig = make_rig();
   rig.M2 = cv::Mat::eye(2, 3, CV_64F);
   write_opencv(dir.file("c.yml"), rig);
@@ -293,7 +278,7 @@ TEST(CalibrationErrors, WrongMatrixShape)
 
 TEST(CalibrationErrors, NonFiniteValues)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   StereoCalibration rig = make_rig();
   rig.T.at<double>(1) = std::numeric_limits<double>::quiet_NaN();
   write_opencv(dir.file("nan.yml"), rig);
@@ -306,7 +291,7 @@ TEST(CalibrationErrors, NonFiniteValues)
 
 TEST(CalibrationErrors, NotARotation)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   StereoCalibration rig = make_rig();
   rig.R = rig.R * 1.01; // scaled
   write_opencv(dir.file("scaled.yml"), rig);
@@ -319,7 +304,7 @@ TEST(CalibrationErrors, NotARotation)
 
 TEST(CalibrationErrors, ZeroBaseline)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   StereoCalibration rig = make_rig();
   rig.T = cv::Mat::zeros(3, 1, CV_64F);
   write_opencv(dir.file("c.yml"), rig);
@@ -328,7 +313,7 @@ TEST(CalibrationErrors, ZeroBaseline)
 
 TEST(CalibrationErrors, ImageSizeMissingOrNotPositive)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   write_opencv(dir.file("nosize.yml"), make_rig(), "image_width");
   expect_error([&] { load_calibration(dir.file("nosize.yml")); }, "nosize.yml", "image_width", "not positive");
   write_opencv(dir.file("none.yml"), make_rig(), "image_size");
@@ -357,7 +342,7 @@ TEST(CalibrationErrors, ImageSizeMissingOrNotPositive)
 
 TEST(CalibrationErrors, FileMissing)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   expect_error([&] { load_calibration(dir.file("nothere.yml")); }, "nothere.yml", "", "missing");
   expect_error([&] { load_calibration(dir.file("a.yaml") + ";" + dir.file("b.yaml")); }, "a.yaml", "", "missing");
   // A directory opens as a stream that reads nothing: it must not be called "empty".
@@ -369,7 +354,7 @@ TEST(CalibrationErrors, FileMissing)
 // read or written says so, a file that was read but cannot be used is a setting's error.
 TEST(CalibrationErrors, TypeAndAccess)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   auto access_of = [](const std::function<void()> &f) {
     try {
       f();
@@ -390,7 +375,7 @@ TEST(CalibrationErrors, TypeAndAccess)
 
 TEST(CalibrationErrors, WrongFormat)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   cv::Mat img(8, 8, CV_8UC1, cv::Scalar(7));
   std::vector<uchar> png;
   cv::imencode(".png", img, png);
@@ -406,7 +391,7 @@ TEST(CalibrationErrors, WrongFormat)
 
 TEST(CalibrationErrors, SyntaxErrorNamesTheFile)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   write_text(dir.file("broken.yml"), "%YAML:1.0\n---\nM1: !!opencv-matrix\n   rows: 3\n  cols: [3\n");
   expect_error([&] { load_calibration(dir.file("broken.yml")); }, "broken.yml", "", "not a valid OpenCV");
   write_text(dir.file("broken.xml"), "<?xml version=\"1.0\"?>\n<opencv_storage>\n<M1 type_id=\"opencv-matrix\">\n");
@@ -500,7 +485,7 @@ TEST(Calibration, ScalesOnlyByAPureScale)
 // behaviour). They are refused with the key named.
 TEST(CalibrationErrors, NumbersBeyondIntRange)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   StereoCalibration rig = make_rig();
   add_rectification(rig);
   std::string left = ros_camera("left", rig.image_size, rig.M1, rig.D1, rig.R1, rig.P1);
@@ -523,7 +508,7 @@ TEST(CalibrationErrors, NumbersBeyondIntRange)
 // asked for 48 GB. The header is checked first.
 TEST(CalibrationErrors, MatrixSizeFromTheFileIsBounded)
 {
-  TempDir dir;
+  TempDir dir("treestereo-calib");
   write_opencv(dir.file("good.yml"), make_rig());
   std::ifstream in(dir.file("good.yml"));
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -7,7 +7,7 @@
 #     a drive-by: the position since the start, tree records and the row map against the truth;
 #  2. the committed image sequences with their calibration, as files and as MP4 videos;
 #  3. usage errors exit 2 (also an unknown --scene or --canopy, --scene without --synthetic,
-#     --camera-timeout or --reconnect out of range),
+#     --camera-timeout or --reconnect out of range) and leave no temporary file behind,
 #     pipeline errors exit 1 with a message naming the problem;
 #  4. Ctrl-C finishes the files: the recording plays and holds every measured frame.
 # Exit 77 (skipped) when the H.264 encoder/decoder is not installed.
@@ -215,6 +215,11 @@ check_json "$tmp/v.jsonl" 8 1 "" || fail "video file JSON"
 "$measure" --camera-left 127.0.0.9 --camera-right 127.0.0.10 --calibration "$fx/calibration.yml" \
   --reconnect -5 >"$tmp/e.out" 2>&1
 [ $? -eq 2 ] && grep -q -- "--reconnect" "$tmp/e.out" || fail "--reconnect -5: $(cat "$tmp/e.out")"
+# a usage error found after the synthetic rig's calibration is written leaves no temporary file
+mkdir "$tmp/tmpdir"
+TMPDIR="$tmp/tmpdir" "$measure" --synthetic --rig-speed -1 --frames 1 >"$tmp/e.out" 2>&1
+[ $? -eq 2 ] && grep -q -- "--rig-speed" "$tmp/e.out" || fail "--rig-speed -1: $(cat "$tmp/e.out")"
+[ -z "$(ls -A "$tmp/tmpdir")" ] || fail "a usage error left $(ls -A "$tmp/tmpdir") in TMPDIR"
 echo "not a calibration" >"$tmp/bad.yml"
 "$measure" --left "$fx/left_%04d.jpg" --right "$fx/right_%04d.jpg" --calibration "$tmp/bad.yml" \
   --quiet >"$tmp/e.out" 2>&1
