@@ -7,7 +7,8 @@
  * it reads the rig's position from the #GstTreeStereoMetricsMeta and feeds its own row map with
  * the canopy meta's silhouette, the points and the ground plane (the same feeding as treemetrics'
  * row map, treestereo::gst::feed_row_map()). A travel bin is final once the rig has passed the
- * next bin's centre; lib's SprayPlanner turns the final bins into commands per section
+ * next bin's centre by the map's settle distance (no later frame can change it then); lib's
+ * SprayPlanner turns the final bins into commands per section
  * (default: one per band of the map, or #spraycontrol:section-heights), timed
  *
  *   at = now + (x + nozzle-offset - position) / speed - valve-latency

@@ -183,7 +183,9 @@ void expect_sprayed(const RowMap &map, int section,
                                     take_final_slices(map, pos, next, {}));
     cmds.insert(cmds.end(), got.begin(), got.end());
   }
-  const auto rest = planner.finish();
+  // at the end, the bins not final yet (as spraycontrol at EOS)
+  const auto rest =
+      planner.finish(take_final_slices(map, std::numeric_limits<double>::infinity(), next, {}));
   cmds.insert(cmds.end(), rest.begin(), rest.end());
   std::vector<double> on, off;
   for (const SectionCommand &c : cmds)
@@ -582,6 +584,49 @@ TEST(RowMap, TwoFramesThatSeeABandsCanopyOutvoteTheNearest)
     later.add_frame(v.mask, v.points, g, level_ground(), pos);
   }
   EXPECT_TRUE(later.cell(32, 1).present);
+}
+
+TEST(RowMap, TheSprayerWaitsForTheFramesStillToVote)
+{
+  // A canopy at 2.50-2.65 m (in the gap before the third) that the frames nearest its bins do
+  // not see and the frames from 2.675 m on do: two of them outvote the nearest. The sprayer,
+  // fed frame by frame as spraycontrol feeds it (frames every 25 mm at 1 m/s), must wait for
+  // those votes: taken when the rig passed the next bin's centre, bin 52 (2.60-2.65 m) would be
+  // planned empty before a frame saw it, and the valve would stay shut where the map shows
+  // canopy.
+  const StereoGeometry g = camera();
+  std::vector<Wall> with = kWalls;
+  with.push_back({2500, 2650, 500, 1500, 2000});
+  RowMap map;
+  SprayParams sp;
+  sp.valve_latency_ns = 0;
+  SprayPlanner planner(sp);
+  long next = LONG_MIN;
+  std::vector<SectionCommand> cmds;
+  for (double pos = 0; pos <= 4000; pos += 25) {
+    const View v = cast(g, pos >= 2675 ? with : kWalls, pos);
+    map.add_frame(v.mask, v.points, g, level_ground(), pos);
+    const auto got = planner.update(std::int64_t(pos * 1e6), pos / 1000.0,
+                                    take_final_slices(map, pos, next, {}));
+    cmds.insert(cmds.end(), got.begin(), got.end());
+  }
+  const auto rest =
+      planner.finish(take_final_slices(map, std::numeric_limits<double>::infinity(), next, {}));
+  cmds.insert(cmds.end(), rest.begin(), rest.end());
+  for (long b = 50; b <= 52; ++b)
+    EXPECT_TRUE(map.cell(b, 1).present) << "bin " << b;
+  EXPECT_GT(map.settle_mm(), 150); // a slope of 0.1 at the canopy's 1.9-2.2 m
+  std::vector<std::pair<double, double>> sprayed;
+  for (const SprayedStretch &st : sprayed_stretches(cmds))
+    if (st.section == 1)
+      sprayed.emplace_back(st.start_m, st.end_m);
+  const std::vector<std::pair<double, double>> truth = {
+      {1.0, 1.6}, {1.7, 2.3}, {2.5, 2.65}, {2.8, 3.3}};
+  ASSERT_EQ(sprayed.size(), truth.size());
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    EXPECT_NEAR(sprayed[i].first, truth[i].first, 2.5e-3) << "stretch " << i;
+    EXPECT_NEAR(sprayed[i].second, truth[i].second, 2.5e-3) << "stretch " << i;
+  }
 }
 
 TEST(RowMap, CsvHeaderAndRows)

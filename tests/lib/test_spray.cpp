@@ -35,7 +35,8 @@ struct Emitted {
 };
 
 // Drives the planner: a frame every frame_ns, the position from position(t); each frame the
-// bins the rig passed with the next bin's centre become final (as take_final_slices does),
+// bins the rig passed with the next bin's centre become final (as take_final_slices does for a
+// map that settles at once),
 // present where the canopy is. Runs until t_end_ns, then finish().
 std::vector<Emitted> drive(SprayPlanner &planner, const Canopy &canopy,
                            const std::function<double(std::int64_t)> &position,

@@ -300,6 +300,9 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   for (const Pt &p : pts)
     all_z.push_back(p.z);
   const double row_z = median(all_z);
+  // the frames still to vote for a bin see its centre within kVoteSlope of their axis, which
+  // lies row_z * dir[2] beside the rig's position
+  settle_mm_ = row_z * (kVoteSlope + std::abs(dir[2]));
 
   const int S = (W + params_.strip_px - 1) / params_.strip_px;
   std::vector<std::vector<double>> strip_z(static_cast<std::size_t>(S));

@@ -143,8 +143,9 @@ std::vector<SpraySlice> take_final_slices(const RowMap &map, double position_mm,
   const double bin = map.params().bin_mm;
   const int nb = map.n_bands();
   for (long b = std::max(next_bin, map.first_bin()); b <= map.last_bin(); ++b) {
-    // final once the rig has passed the next bin's centre too (see the header)
-    if ((double(b) + 1.5) * bin > position_mm)
+    // final once the rig has passed the next bin's centre too, by the map's settle distance
+    // (see the header)
+    if ((double(b) + 1.5) * bin + map.settle_mm() > position_mm)
       break;
     next_bin = b + 1;
     std::vector<RowMapCell> cells(static_cast<std::size_t>(nb));

@@ -156,6 +156,12 @@ public:
   // First and last bin index seen (bin b covers [b, b + 1) * bin_mm of world x).
   long first_bin() const;
   long last_bin() const;
+  // How far (mm along the row) the rig must have passed a bin's centre before no later frame
+  // can change the bin: a frame nearer the bin's centre comes before the rig passes it, but one
+  // that votes for a band (see the top) may come up to a slope of 0.1 past it, about 200 mm at
+  // 2 m. At the last frame's canopy depth (0 before a frame with depth); a sprayer that takes a
+  // bin sooner gives its valves what a later frame may still change.
+  double settle_mm() const { return settle_mm_; }
   // The cell of bin b (index as above), band k (0 = lowest); an unseen default cell outside.
   // Its presence depends on bins b - 1 and b + 1 (see above).
   RowMapCell cell(long bin, int band) const;
@@ -224,6 +230,7 @@ private:
   RowMapParams params_;
   std::vector<double> edges_;
   std::map<long, Bin> bins_;
+  double settle_mm_ = 0;
 };
 
 } // namespace treestereo

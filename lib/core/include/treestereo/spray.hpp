@@ -86,8 +86,10 @@ std::vector<SliceSection> sections_of(const std::vector<RowMapCell> &cells,
 
 // The bins of `map` final at position_mm and not yet taken (`next_bin`: the first bin not yet
 // taken, updated; start it at LONG_MIN) as slices. A bin is final once the rig has passed the
-// next bin's centre: later frames see both further from the image centre, so the map keeps
-// them as they are, and a cell's presence may depend on its neighbours (RowMap::cell()).
+// next bin's centre by the map's settle distance (RowMap::settle_mm(): the frames that may still
+// vote for a band), as a cell's presence may depend on its neighbours (RowMap::cell()). Taken
+// sooner, a band that the frames after the nearest see present would be planned empty, and the
+// valve would close where the map (treemetrics' row-map-location) shows canopy.
 std::vector<SpraySlice> take_final_slices(const RowMap &map, double position_mm, long &next_bin,
                                           const std::vector<SectionRange> &ranges);
 
