@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -168,35 +169,44 @@ std::vector<TreeRecord> trees()
   return out;
 }
 
-// Section `section`'s commands for `map` (frames every 100 mm, no valve latency) open and close
-// it at `stretches` (m, to a pixel).
-void expect_sprayed(const RowMap &map, int section,
-                    const std::vector<std::pair<double, double>> &stretches)
+// The commands of a planner without valve latency fed as spraycontrol feeds it: at each frame
+// position from 0 to to_mm, every step_mm, `frame` (when given: adds that frame to the map),
+// then the bins of `map` final there; at the end the bins not final yet (as at EOS). Without
+// `frame`, `map` is complete before the first position.
+std::vector<SectionCommand> plan_commands(const RowMap &map, double step_mm, double to_mm,
+                                          const std::function<void(double)> &frame = {})
 {
   SprayParams sp;
   sp.valve_latency_ns = 0;
   SprayPlanner planner(sp);
   long next = LONG_MIN;
   std::vector<SectionCommand> cmds;
-  for (double pos = 0; pos <= 4000; pos += 100) {
+  for (double pos = 0; pos <= to_mm; pos += step_mm) {
+    if (frame)
+      frame(pos);
     const auto got = planner.update(std::int64_t(pos * 1e6), pos / 1000.0,
                                     take_final_slices(map, pos, next, {}));
     cmds.insert(cmds.end(), got.begin(), got.end());
   }
-  // at the end, the bins not final yet (as spraycontrol at EOS)
   const auto rest =
       planner.finish(take_final_slices(map, std::numeric_limits<double>::infinity(), next, {}));
   cmds.insert(cmds.end(), rest.begin(), rest.end());
-  std::vector<double> on, off;
-  for (const SectionCommand &c : cmds)
-    if (c.section == section)
-      (c.on ? on : off).push_back(c.position_m);
-  ASSERT_EQ(on.size(), stretches.size());
-  ASSERT_EQ(off.size(), stretches.size());
+  return cmds;
+}
+
+// Section `section` of `cmds` sprays `stretches` (m, each end to a pixel).
+void expect_sprayed(const std::vector<SectionCommand> &cmds, int section,
+                    const std::vector<std::pair<double, double>> &stretches)
+{
+  std::vector<SprayedStretch> got;
+  for (const SprayedStretch &st : sprayed_stretches(cmds))
+    if (st.section == section)
+      got.push_back(st);
+  ASSERT_EQ(got.size(), stretches.size());
   const double px = 2.5e-3; // m
   for (std::size_t i = 0; i < stretches.size(); ++i) {
-    EXPECT_NEAR(on[i], stretches[i].first, px);
-    EXPECT_NEAR(off[i], stretches[i].second, px);
+    EXPECT_NEAR(got[i].start_m, stretches[i].first, px) << "stretch " << i;
+    EXPECT_NEAR(got[i].end_m, stretches[i].second, px) << "stretch " << i;
   }
 }
 
@@ -272,7 +282,7 @@ TEST(RowMap, CanopyEdgesWithinTheBins)
 
   // The sprayer switches at those edges, not at the bins': the 123 mm gap closes the valve
   // from 1.590 to 1.713 m.
-  expect_sprayed(map, 1, {{1.020, 1.590}, {1.713, 2.262}});
+  expect_sprayed(plan_commands(map, 100, 4000), 1, {{1.020, 1.590}, {1.713, 2.262}});
 }
 
 TEST(RowMap, ASliverOfCanopyEndingAStretchIsPresent)
@@ -299,7 +309,7 @@ TEST(RowMap, ASliverOfCanopyEndingAStretchIsPresent)
   EXPECT_FALSE(map.cell(31, 2).present);
 
   // The section closes where the sliver ends, not at the bin's edge before it.
-  expect_sprayed(map, 2, {{1.000, 1.540}});
+  expect_sprayed(plan_commands(map, 100, 4000), 2, {{1.000, 1.540}});
 }
 
 TEST(RowMap, AFrameOfOneTreeSpeaksForItsPartOfTheRowOnly)
@@ -598,35 +608,14 @@ TEST(RowMap, TheSprayerWaitsForTheFramesStillToVote)
   std::vector<Wall> with = kWalls;
   with.push_back({2500, 2650, 500, 1500, 2000});
   RowMap map;
-  SprayParams sp;
-  sp.valve_latency_ns = 0;
-  SprayPlanner planner(sp);
-  long next = LONG_MIN;
-  std::vector<SectionCommand> cmds;
-  for (double pos = 0; pos <= 4000; pos += 25) {
+  const auto cmds = plan_commands(map, 25, 4000, [&](double pos) {
     const View v = cast(g, pos >= 2675 ? with : kWalls, pos);
     map.add_frame(v.mask, v.points, g, level_ground(), pos);
-    const auto got = planner.update(std::int64_t(pos * 1e6), pos / 1000.0,
-                                    take_final_slices(map, pos, next, {}));
-    cmds.insert(cmds.end(), got.begin(), got.end());
-  }
-  const auto rest =
-      planner.finish(take_final_slices(map, std::numeric_limits<double>::infinity(), next, {}));
-  cmds.insert(cmds.end(), rest.begin(), rest.end());
+  });
   for (long b = 50; b <= 52; ++b)
     EXPECT_TRUE(map.cell(b, 1).present) << "bin " << b;
   EXPECT_GT(map.settle_mm(), 150); // a slope of 0.1 at the canopy's 1.9-2.2 m
-  std::vector<std::pair<double, double>> sprayed;
-  for (const SprayedStretch &st : sprayed_stretches(cmds))
-    if (st.section == 1)
-      sprayed.emplace_back(st.start_m, st.end_m);
-  const std::vector<std::pair<double, double>> truth = {
-      {1.0, 1.6}, {1.7, 2.3}, {2.5, 2.65}, {2.8, 3.3}};
-  ASSERT_EQ(sprayed.size(), truth.size());
-  for (std::size_t i = 0; i < truth.size(); ++i) {
-    EXPECT_NEAR(sprayed[i].first, truth[i].first, 2.5e-3) << "stretch " << i;
-    EXPECT_NEAR(sprayed[i].second, truth[i].second, 2.5e-3) << "stretch " << i;
-  }
+  expect_sprayed(cmds, 1, {{1.0, 1.6}, {1.7, 2.3}, {2.5, 2.65}, {2.8, 3.3}});
 }
 
 TEST(RowMap, CsvHeaderAndRows)
