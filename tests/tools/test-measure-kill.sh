@@ -54,8 +54,9 @@ boxes=$(mp4_boxes "$tmp/e.mp4" | tr '\n' ' ')
 [ "$(mp4_boxes "$tmp/e.mp4" | grep -c '^moof$')" -ge 3 ] || fail "not a fragmented MP4 of 3 fragments: $boxes"
 [ "$(mp4_boxes "$tmp/e.mp4" | tail -1)" = mfra ] || fail "the EOS recording does not end with its seek index (mfra): $boxes"
 
-# 2. SIGKILL after at least 5 fragments (35 frames)
-"$measure" --synthetic --frames 100000 --size 320x240 --json "$tmp/k.jsonl" --csv "$tmp/k.csv" \
+# 2. SIGKILL after at least 5 fragments (35 frames); killed, it cannot remove its temporary
+#    calibration: TMPDIR puts that under $tmp, which the trap removes
+TMPDIR="$tmp" "$measure" --synthetic --frames 100000 --size 320x240 --json "$tmp/k.jsonl" --csv "$tmp/k.csv" \
   --record "$tmp/k.mp4" --quiet >"$tmp/k.out" 2>&1 &
 pid=$!
 for _ in $(seq 1 2400); do
