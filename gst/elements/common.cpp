@@ -316,6 +316,9 @@ GstTreeStereoCanopyMeta *add_canopy_meta(GstBuffer *buf, const CanopyResult &r, 
     o.lo_clear_m = g.lo_clear_mm * kMmToM;
     o.hi_clear_m = g.hi_clear_mm * kMmToM;
     o.trunk_m = g.trunk_mm * kMmToM;
+    o.lo_y_m = g.lo_y_mm * kMmToM;
+    o.hi_y_m = g.hi_y_mm * kMmToM;
+    o.trunk_y_m = g.trunk_y_mm * kMmToM;
   }
   return meta;
 }
@@ -340,6 +343,9 @@ std::vector<RowSegment> segments_from_meta(const GstTreeStereoCanopyMeta *meta)
     o.lo_clear_mm = g.lo_clear_m * 1e3;
     o.hi_clear_mm = g.hi_clear_m * 1e3;
     o.trunk_mm = g.trunk_m * 1e3;
+    o.lo_y_mm = g.lo_y_m * 1e3;
+    o.hi_y_mm = g.hi_y_m * 1e3;
+    o.trunk_y_mm = g.trunk_y_m * 1e3;
     out.push_back(o);
   }
   return out;

@@ -378,6 +378,44 @@ TrackFrame yawed(const TrackFrame &f, double deg)
   return y;
 }
 
+// `f` as cameras rolled by `deg` about their optical axis see it: every point (x, y, z) at
+// (x cos - y sin, x sin + y cos, z), the row's direction at (cos, sin, 0). The crowns' edges and
+// segment ends are at height `crown_y_mm` (camera Y, down), the trunks read at `trunk_y_mm`;
+// `keep_y` false: every Y given as 0 (unknown), as a tracker that ignores heights sees it.
+TrackFrame rolled(const TrackFrame &f, double deg, double crown_y_mm, double trunk_y_mm,
+                  bool keep_y = true)
+{
+  const double c = std::cos(deg * CV_PI / 180), s = std::sin(deg * CV_PI / 180);
+  const auto x_of = [&](double x, double y) { return x * c - y * s; };
+  const auto y_of = [&](double x, double y) { return keep_y ? x * s + y * c : 0.0; };
+  TrackFrame r = f;
+  r.row_direction = cv::Vec3d(c, s, 0);
+  for (RowSegment &g : r.segments) {
+    const RowSegment o = g;
+    g.lo_mm = x_of(o.lo_mm, crown_y_mm);
+    g.lo_y_mm = y_of(o.lo_mm, crown_y_mm);
+    g.hi_mm = x_of(o.hi_mm, crown_y_mm);
+    g.hi_y_mm = y_of(o.hi_mm, crown_y_mm);
+    if (std::isfinite(o.trunk_mm)) {
+      g.trunk_mm = x_of(o.trunk_mm, trunk_y_mm);
+      g.trunk_y_mm = y_of(o.trunk_mm, trunk_y_mm);
+    }
+  }
+  TreeMetrics &m = r.metrics;
+  if (m.tree_present) {
+    const double l = f.metrics.left_m * 1000, rt = f.metrics.right_m * 1000, mid = 0.5 * (l + rt);
+    m.left_m = x_of(l, crown_y_mm) / 1000;
+    m.right_m = x_of(rt, crown_y_mm) / 1000;
+    m.centroid_m = cv::Point3d(x_of(mid, crown_y_mm), y_of(mid, crown_y_mm), kNear) / 1000;
+    for (Band &b : m.bands) {
+      const double yb = 500 * (b.top_m + b.bottom_m);
+      b.left_m = x_of(b.left_m * 1000, yb) / 1000;
+      b.right_m = x_of(b.right_m * 1000, yb) / 1000;
+    }
+  }
+  return r;
+}
+
 } // namespace
 
 TEST(TreeTracker, FiveTreesAtHalfMetrePerSecond)
@@ -729,6 +767,46 @@ TEST(TreeTracker, ACrownCutAtAValleyReachesAsFarFromItsTrunkAsItsFreeSide)
     }
 }
 
+// Cameras rolled 1.5 degrees on the rig against the row (a rectification that levels the
+// baseline turns the view too): a vertical trunk leans in the view. Read 600 mm below the crown's
+// edges, its X is 16 mm off the X of the crown's middle above it; only its place along the row,
+// its height included, is the crown's. The mirrored side doubles what is off.
+TEST(TreeTracker, ARolledViewPlacesATrunkAlongTheRowByItsHeight)
+{
+  const std::vector<TrueTree> row = {{1000, 1750, 0.9, 2.0}, {1650, 2400, 1.0, 2.0},
+                                     {2900, 3500, 0.95, 2.0}};
+  Sim sim;
+  sim.speed_m_s = 1.0;
+  sim.to_mm = 6000;
+  sim.top_clipped_tree = -1;
+  sim.valley_from_mm = 300;
+  sim.valley_at = 0;
+  sim.trunks = true;
+  sim.segments_at_cut = true;
+  const auto frames = simulate(row, sim);
+  std::vector<SimFrame> turned = frames, unknown = frames;
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    turned[f].frame = rolled(frames[f].frame, 1.5, -100, 500);
+    unknown[f].frame = rolled(frames[f].frame, 1.5, -100, 500, false);
+  }
+  TreeTracker level, along, flat;
+  const auto want = run(level, frames);
+  const auto got = run(along, turned);
+  const auto off = run(flat, unknown);
+  ASSERT_EQ(want.size(), 3u);
+  ASSERT_EQ(got.size(), 3u);
+  ASSERT_EQ(off.size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    SCOPED_TRACE("tree " + std::to_string(i));
+    ASSERT_TRUE(got[i].record.has_width);
+    EXPECT_NEAR(got[i].record.width_m, want[i].record.width_m, 0.002);
+    EXPECT_NEAR(got[i].record.position_m, want[i].record.position_m, 0.002);
+  }
+  // Without the heights the first crown's mirrored end moves by twice the trunk's 16 mm less
+  // the crown edges' 3 mm.
+  EXPECT_LT(off[0].record.width_m - want[0].record.width_m, -0.02);
+}
+
 // Stray points bridge the 800 mm gap between trees 1 and 2 while tree 2 enters the view: tree 1
 // keeps its own extent (its end seen off the edge before), tree 2 gets its own record.
 TEST(TreeTracker, AFrameBridgingAGapDoesNotJoinTwoTrees)
@@ -1041,6 +1119,10 @@ TEST(TreeTracker, ErrorsAreTypedAndNameTheProblem)
   seg.trunk_mm = -std::numeric_limits<double>::infinity();
   f.segments = {seg};
   expect_typed_error<BadInput>([&] { t.update(f); }, "trunk_mm");
+  seg = front_segment(-300, 300);
+  seg.trunk_y_mm = std::nan("");
+  f.segments = {seg};
+  expect_typed_error<BadInput>([&] { t.update(f); }, "trunk_y_mm");
   double l = 0, r = 0, off = 0;
   expect_typed_error<BadInput>([&] { view_slopes(StereoGeometry(), l, r, off); },
                                "stereo geometry");

@@ -112,6 +112,14 @@ TEST(Trunk, TheBareColumnsThatMatchAtTheCrownsDepth)
   const Pair p = make_pair({bar, Bar{120, 60, 0, false}});
   const double pixel_mm = bar.z_mm / p.g.fx;
   EXPECT_NEAR(trunk(p), axis_x(p, bar), pixel_mm);
+  // Read in the rows from two below the crown's bottom (row 300) two thirds of the way down to
+  // the ground under the crown's middle (2400 mm deep: below the view, so its bottom row): rows
+  // 302-419, the middle 360.5. Its Y, at the axis' depth, is what places it along a row the view
+  // is rolled against.
+  double y_mm = 0;
+  find_trunk(p.left, p.right, p.vegetation, p.canopy, p.segment, p.ground, p.g, &y_mm);
+  const double z_axis = bar.z_mm * (1 + 0.5 * bar.width / p.g.fx);
+  EXPECT_NEAR(y_mm, (360.5 - p.g.cy) * z_axis / p.g.fy, z_axis / p.g.fy);
   // Off the crown's side of the view, and with the image's bottom for the ground.
   const Bar left{150, 50, 2400};
   Pair q = make_pair({left});

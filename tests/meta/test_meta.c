@@ -510,6 +510,9 @@ fill_canopy (GstTreeStereoCanopyMeta * c, GstBuffer * mask)
     c->segments[i].lo_clear_m = 0.03 + 0.1 * i;
     c->segments[i].hi_clear_m = -0.004 + 0.2 * i;
     c->segments[i].trunk_m = i == 1 ? -0.35 : NAN;
+    c->segments[i].lo_y_m = -0.1 + 0.01 * i;
+    c->segments[i].hi_y_m = -0.2 + 0.01 * i;
+    c->segments[i].trunk_y_m = i == 1 ? 0.45 : 0.0;
   }
   c->cut_lo_m = -0.85;
   c->cut_hi_m = INFINITY;
@@ -546,6 +549,9 @@ assert_canopy_figures_equal (const GstTreeStereoCanopyMeta * a, const GstTreeSte
     fail_unless_equals_float (a->segments[i].hi_clear_m, b->segments[i].hi_clear_m);
     fail_unless (a->segments[i].trunk_m == b->segments[i].trunk_m ||
         (isnan (a->segments[i].trunk_m) && isnan (b->segments[i].trunk_m)));
+    fail_unless_equals_float (a->segments[i].lo_y_m, b->segments[i].lo_y_m);
+    fail_unless_equals_float (a->segments[i].hi_y_m, b->segments[i].hi_y_m);
+    fail_unless_equals_float (a->segments[i].trunk_y_m, b->segments[i].trunk_y_m);
   }
 }
 

@@ -658,10 +658,12 @@ CanopyResult select_canopy(const cv::Mat &vegetation, const std::vector<PixelPoi
       RowSegment &s = r.segments[std::size_t(k)];
       if (P(i).x < s.lo_mm) {
         s.lo_mm = P(i).x;
+        s.lo_y_mm = P(i).y;
         s.lo_z_mm = P(i).z;
       }
       if (P(i).x > s.hi_mm) {
         s.hi_mm = P(i).x;
+        s.hi_y_mm = P(i).y;
         s.hi_z_mm = P(i).z;
       }
       // Its distance from the view's edges, in px of both views (the point needs both), then
@@ -1215,7 +1217,7 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
     for (RowSegment &s : out.canopy.segments)
       if (s.selected)
         s.trunk_mm = find_trunk(left_grey, right_grey, vegetation.mask, out.canopy.silhouette.mask,
-                                s, out.canopy.ground, g);
+                                s, out.canopy.ground, g, &s.trunk_y_mm);
 
   // 2. The canopy alone, densely: seeded by the matches on it.
   out.matches = seeds;

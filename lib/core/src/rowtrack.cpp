@@ -47,14 +47,19 @@ void check_frame(const TrackFrame &f)
     if (!std::isfinite(s.lo_mm) || !std::isfinite(s.hi_mm) || s.hi_mm < s.lo_mm ||
         !std::isfinite(s.near_mm) || !(s.near_mm > 0) || !(s.lo_z_mm >= 0) ||
         !(s.hi_z_mm >= 0) || !std::isfinite(s.lo_z_mm) || !std::isfinite(s.hi_z_mm) ||
+        !std::isfinite(s.lo_y_mm) || !std::isfinite(s.hi_y_mm) || !std::isfinite(s.trunk_y_mm) ||
         std::isinf(s.lo_clear_mm) || std::isinf(s.hi_clear_mm) || std::isinf(s.trunk_mm))
       throw BadInput("A row segment in the frame cannot be used: each needs finite lo_mm <= "
-                     "hi_mm, a near_mm above 0, lo_z_mm, hi_z_mm finite and 0 or above, and "
-                     "lo_clear_mm, hi_clear_mm, trunk_mm finite or NaN (unknown).",
+                     "hi_mm, a near_mm above 0, lo_z_mm, hi_z_mm finite and 0 or above, "
+                     "lo_y_mm, hi_y_mm, trunk_y_mm finite, and lo_clear_mm, hi_clear_mm, "
+                     "trunk_mm finite or NaN (unknown).",
                      "RowSegment: lo_mm=" + std::to_string(s.lo_mm) + " hi_mm=" +
                          std::to_string(s.hi_mm) + " near_mm=" + std::to_string(s.near_mm) +
                          " lo_z_mm=" + std::to_string(s.lo_z_mm) +
                          " hi_z_mm=" + std::to_string(s.hi_z_mm) +
+                         " lo_y_mm=" + std::to_string(s.lo_y_mm) +
+                         " hi_y_mm=" + std::to_string(s.hi_y_mm) +
+                         " trunk_y_mm=" + std::to_string(s.trunk_y_mm) +
                          " lo_clear_mm=" + std::to_string(s.lo_clear_mm) +
                          " hi_clear_mm=" + std::to_string(s.hi_clear_mm) +
                          " trunk_mm=" + std::to_string(s.trunk_mm));
@@ -74,7 +79,12 @@ TrackFrame along_the_row(const TrackFrame &in)
   if (d == cv::Vec3d(1, 0, 0))
     return in;
   TrackFrame f = in;
-  const auto at = [&d](double x_mm, double z_mm) { return x_mm * d[0] + z_mm * d[2]; };
+  // A point's place along the row (along_row()). Its height counts where the view is rolled
+  // against the row: a vertical trunk then leans in the view, and its X below the crown is not
+  // the X of the crown's middle above it.
+  const auto at = [&d](double x_mm, double y_mm, double z_mm) {
+    return along_row(cv::Vec3d(x_mm, y_mm, z_mm), d);
+  };
   const auto ray = [&d](double slope) { return slope * d[0] + d[2]; };
   f.left_slope = ray(in.left_slope);
   f.right_slope = ray(in.right_slope);
@@ -83,25 +93,28 @@ TrackFrame along_the_row(const TrackFrame &in)
     // The trunk's axis: half the crown's length behind its front (a crown about as deep as it is
     // long along the row).
     if (std::isfinite(s.trunk_mm))
-      s.trunk_mm = at(s.trunk_mm, s.near_mm + 0.5 * (s.hi_mm - s.lo_mm));
-    s.lo_mm = at(s.lo_mm, s.lo_z_mm > 0 ? s.lo_z_mm : s.near_mm);
-    s.hi_mm = at(s.hi_mm, s.hi_z_mm > 0 ? s.hi_z_mm : s.near_mm);
+      s.trunk_mm = at(s.trunk_mm, s.trunk_y_mm, s.near_mm + 0.5 * (s.hi_mm - s.lo_mm));
+    s.lo_mm = at(s.lo_mm, s.lo_y_mm, s.lo_z_mm > 0 ? s.lo_z_mm : s.near_mm);
+    s.hi_mm = at(s.hi_mm, s.hi_y_mm, s.hi_z_mm > 0 ? s.hi_z_mm : s.near_mm);
     s.lo_clear_mm *= d[0]; // a distance along x at one depth (NaN stays NaN)
     s.hi_clear_mm *= d[0];
   }
   TreeMetrics &m = f.metrics;
   if (m.tree_present) {
     const double z_mm = (m.extent_depth_m > 0 ? m.extent_depth_m : m.distance_m) / kMmToM;
-    m.left_m = at(m.left_m / kMmToM, z_mm) * kMmToM;
-    m.right_m = at(m.right_m / kMmToM, z_mm) * kMmToM;
+    // The extent's left and right edges at the canopy centroid's height.
+    const double y_mm = std::isfinite(m.centroid_m.y) ? m.centroid_m.y / kMmToM : 0.0;
+    m.left_m = at(m.left_m / kMmToM, y_mm, z_mm) * kMmToM;
+    m.right_m = at(m.right_m / kMmToM, y_mm, z_mm) * kMmToM;
     m.left_slope = ray(m.left_slope);
     m.right_slope = ray(m.right_slope);
     for (Band &b : m.bands) {
       if (!b.present)
         continue;
       const double zb_mm = b.depth_m > 0 ? b.depth_m / kMmToM : z_mm;
-      b.left_m = at(b.left_m / kMmToM, zb_mm) * kMmToM;
-      b.right_m = at(b.right_m / kMmToM, zb_mm) * kMmToM;
+      const double yb_mm = 0.5 * (b.top_m + b.bottom_m) / kMmToM;
+      b.left_m = at(b.left_m / kMmToM, yb_mm, zb_mm) * kMmToM;
+      b.right_m = at(b.right_m / kMmToM, yb_mm, zb_mm) * kMmToM;
       b.width_m = b.right_m - b.left_m;
     }
   }

@@ -38,7 +38,7 @@ int clamped(double v, int lo, int hi)
 
 double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
                   const cv::Mat &canopy, const RowSegment &s, const GroundPlane &ground,
-                  const StereoGeometry &g)
+                  const StereoGeometry &g, double *row_y_mm)
 {
   require_valid(g, "Finding a trunk", "find_trunk");
   const cv::Size size = g.view_size;
@@ -191,6 +191,8 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   const double u_mid = u0 + 0.5 * (r.a + r.b);
   // The match sees the trunk's front; its axis stands a radius (half its width) behind.
   const double z_axis = pick_z * (1 + 0.5 * r.len() / g.fx);
+  if (row_y_mm)
+    *row_y_mm = (0.5 * (y0 + y1 - 1) - g.cy) * z_axis / (g.fy > 0 ? g.fy : g.fx);
   return (u_mid - cx) * z_axis / g.fx;
 }
 

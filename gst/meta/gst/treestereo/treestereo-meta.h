@@ -335,6 +335,10 @@ GType gst_tree_stereo_canopy_mode_get_type (void);
  * @hi_clear_m: likewise from the view's right edge
  * @trunk_m: X of its trunk where it shows below the crown (m; NaN: not seen; mode tree, the
  *   selected segment)
+ * @lo_y_m: Y (downwards) of its leftmost point (m; 0: unknown). Along the row a point lies at
+ *   its projection on the row's direction, which a rolled view gives a Y component
+ * @hi_y_m: Y of its rightmost point (m; 0: unknown)
+ * @trunk_y_m: Y of the rows @trunk_m was read in (m)
  *
  * One stretch of the near row along x, separated from the next by an empty stretch (mode tree),
  * or one continuous canopy (mode row).
@@ -352,6 +356,9 @@ typedef struct {
   gdouble lo_clear_m;
   gdouble hi_clear_m;
   gdouble trunk_m;
+  gdouble lo_y_m;
+  gdouble hi_y_m;
+  gdouble trunk_y_m;
 } GstTreeStereoRowSegment;
 
 /* Segments a canopy meta holds at most (the view of a rig between two rows holds a few). */

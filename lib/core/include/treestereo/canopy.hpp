@@ -141,6 +141,9 @@ struct RowSegment {
   // Z of the points at lo_mm and hi_mm (a limb behind the front reaches further out on an edge
   // ray; the edge test's fallback where the clearance below is unknown). 0: unknown.
   double lo_z_mm = 0, hi_z_mm = 0;
+  // Y of those points (camera Y, downwards; mm). A view rolled against the row's direction places
+  // a point along the row by its height too (along_row()). 0: unknown (the camera's height).
+  double lo_y_mm = 0, hi_y_mm = 0;
   // How far inside the stereo view's left (lo) and right (hi) edge its points keep: the least
   // distance along x of any of its points from that edge's ray at the point's own depth (mm;
   // the rays of view_slopes(); below 0 for a point a little beyond). Whether the canopy goes on
@@ -159,6 +162,7 @@ struct RowSegment {
   // X of its trunk where it shows below the crown (find_trunk(); mm; NaN: not seen). Set for
   // the selected segment of mode Tree.
   double trunk_mm = std::numeric_limits<double>::quiet_NaN();
+  double trunk_y_mm = 0; // Y (mm) of the rows trunk_mm was read in, well below the crown
 };
 
 struct CanopyResult {
@@ -252,10 +256,11 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
 //   one is more than half as wide (two trunks, or a post: no telling which). Its axis stands
 //   half its width behind the front the match saw.
 // `left`, `right`: rectified grey views (CV_8UC1); `vegetation`, `canopy`: CV_8UC1 masks of the
-// view. Throws BadInput when they do not fit the geometry's view, or the geometry is invalid.
+// view. `y_mm`, when given and a trunk is found: the Y (mm) of the rows' middle at the axis.
+// Throws BadInput when they do not fit the geometry's view, or the geometry is invalid.
 double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
                   const cv::Mat &canopy, const RowSegment &segment, const GroundPlane &ground,
-                  const StereoGeometry &geometry);
+                  const StereoGeometry &geometry, double *y_mm = nullptr);
 
 // The share of the mask's pixels within radius_px of a point: how much of a silhouette has depth
 // support. 0 for an empty mask.
