@@ -126,9 +126,12 @@ struct TrackFrame {
   // The row's direction in the rectified-left frame (unit, x component above 0.5:
   // RowDirection::direction()). Every X above (the segments' ends and trunks, the metrics' edges
   // and bands, the view's edges) is placed along the row by its projection on it at its own
-  // depth: a point (X, Z) at X dx + Z dz, a ray of slope t at (t dx + dz) per unit of depth. Y is
-  // not known for them and is taken as the camera's height (a crown's side extremes lie near the
-  // middle of its height; the camera is set there). (1, 0, 0): X itself.
+  // depth and height: a point (X, Y, Z) at X dx + Y dy + Z dz, a ray of slope t at (t dx + dz)
+  // per unit of depth. The heights: the segments' lo_y_mm, hi_y_mm and trunk_y_mm, the metrics'
+  // edges at the centroid's Y (a crown's side extremes lie near the middle of its height), a
+  // band's at its middle. They count where the view is rolled against the row (dy not 0): a
+  // vertical trunk read below the crown then has another X than the crown's middle above it.
+  // (1, 0, 0): X itself.
   cv::Vec3d row_direction{1, 0, 0};
 };
 
