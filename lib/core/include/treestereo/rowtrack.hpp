@@ -61,8 +61,7 @@
 //    never drove past (the run began or ended before the camera came level with that edge: the
 //    first crown's, the last one's) was seen from inside the crown only, off the axis, and
 //    hides its back clusters the same way: with the trunk seen and the other side neither cut
-//    at a valley nor unpassed, it is mirrored too (the run starting at a crown's middle read
-//    it 1.3-2 % narrow on 4 of 9 seeds).
+//    at a valley nor unpassed, it is mirrored too.
 //  - position_m is the canopy's centre along the row, (start_m + end_m) / 2, not the trunk's
 //    (seen in some frames only); on a symmetric crown the two agree.
 //  - confidence is the median over the fused frames, like every other fused value: the record
