@@ -722,49 +722,68 @@ TEST(TreeTracker, TouchingCrownsCutAtTheirValleyAreTwoTrees)
   }
 }
 
-// The outline of touching crowns dips where the nearer one's limb is: the cut lies at the second
-// crown's start, 100 mm inside the first. A trunk seen below the first gives its hidden side:
-// the free side mirrored about it, for its width and for its end and place along the row.
-TEST(TreeTracker, ACrownCutAtAValleyReachesAsFarFromItsTrunkAsItsFreeSide)
+// Runs `row` (three trees) at 0.5 and 2 m/s, with and without their trunks seen below the
+// crowns, with `sim`'s other settings, and hands each run's three records, each with a width,
+// and whether the trunks were seen to `check`.
+template <typename Check> void with_and_without_trunks(const std::vector<TrueTree> &row, Sim sim,
+                                                       Check check)
 {
-  const std::vector<TrueTree> row = {{1000, 1750, 0.9, 2.0}, {1650, 2400, 1.0, 2.0},
-                                     {2900, 3500, 0.95, 2.0}};
   for (bool trunks : {false, true})
     for (double speed : {0.5, 2.0}) {
       SCOPED_TRACE(std::string(trunks ? "trunks seen" : "no trunk") + ", speed " +
                    std::to_string(speed));
-      Sim sim;
       sim.speed_m_s = speed;
-      sim.to_mm = 6000;
       sim.top_clipped_tree = -1;
-      sim.valley_from_mm = 300;
-      sim.valley_at = 0;
       sim.trunks = trunks;
-      sim.segments_at_cut = true;
       TreeTracker tracker;
       const auto got = run(tracker, simulate(row, sim));
       ASSERT_EQ(got.size(), 3u);
       for (std::size_t i = 0; i < 3; ++i)
         ASSERT_TRUE(got[i].record.has_width) << i;
-      // Its end and place likewise: at the cut, 50 mm short of its centre without the trunk.
-      const TreeRecord &a = got[0].record;
-      if (trunks) {
-        EXPECT_NEAR(a.end_m, row[0].end_mm / 1000.0, 0.03);
-        EXPECT_NEAR(a.position_m, row[0].centre_m(), 0.015);
-      } else {
-        EXPECT_NEAR(a.end_m, row[1].start_mm / 1000.0, 0.015);
-        EXPECT_LT(a.position_m, row[0].centre_m() - 0.035);
-      }
-      const double first = got[0].record.width_m - row[0].width_m();
-      // The mirror doubles the free edge's error and the trunk's: as expect_row()'s.
-      if (trunks)
-        EXPECT_NEAR(first, 0, 0.03);
-      else
-        EXPECT_LT(first, -0.07); // the cut, 100 mm inside
-      // The second's cut side is its own start: the mirror never moves an edge inward.
-      EXPECT_NEAR(got[1].record.width_m, row[1].width_m(), 0.03);
-      EXPECT_NEAR(got[2].record.width_m, row[2].width_m(), 0.03);
+      check(got, trunks);
     }
+}
+
+// Two crowns grown into each other, then a free one. The outline of touching crowns dips where
+// the nearer one's limb is: the cut lies at the second crown's start, 100 mm inside the first.
+const std::vector<TrueTree> kTouching = {{1000, 1750, 0.9, 2.0}, {1650, 2400, 1.0, 2.0},
+                                         {2900, 3500, 0.95, 2.0}};
+Sim touching_sim()
+{
+  Sim sim;
+  sim.to_mm = 6000;
+  sim.top_clipped_tree = -1;
+  sim.valley_from_mm = 300;
+  sim.valley_at = 0;
+  sim.segments_at_cut = true;
+  return sim;
+}
+
+// A trunk seen below the first of kTouching gives its hidden side: the free side mirrored about
+// it, for its width and for its end and place along the row.
+TEST(TreeTracker, ACrownCutAtAValleyReachesAsFarFromItsTrunkAsItsFreeSide)
+{
+  const std::vector<TrueTree> &row = kTouching;
+  with_and_without_trunks(row, touching_sim(), [&](const std::vector<Emitted> &got, bool trunks) {
+    // Its end and place likewise: at the cut, 50 mm short of its centre without the trunk.
+    const TreeRecord &a = got[0].record;
+    if (trunks) {
+      EXPECT_NEAR(a.end_m, row[0].end_mm / 1000.0, 0.03);
+      EXPECT_NEAR(a.position_m, row[0].centre_m(), 0.015);
+    } else {
+      EXPECT_NEAR(a.end_m, row[1].start_mm / 1000.0, 0.015);
+      EXPECT_LT(a.position_m, row[0].centre_m() - 0.035);
+    }
+    const double first = got[0].record.width_m - row[0].width_m();
+    // The mirror doubles the free edge's error and the trunk's: as expect_row()'s.
+    if (trunks)
+      EXPECT_NEAR(first, 0, 0.03);
+    else
+      EXPECT_LT(first, -0.07); // the cut, 100 mm inside
+    // The second's cut side is its own start: the mirror never moves an edge inward.
+    EXPECT_NEAR(got[1].record.width_m, row[1].width_m(), 0.03);
+    EXPECT_NEAR(got[2].record.width_m, row[2].width_m(), 0.03);
+  });
 }
 
 // The run starts with the first crown in front and ends with the last one in front: the rig never
@@ -776,37 +795,26 @@ TEST(TreeTracker, ASideTheRigNeverPassedReachesAsFarFromItsTrunkAsTheOther)
 {
   const std::vector<TrueTree> row = {{-350, 350, 0.9, 2.0}, {900, 1600, 1.0, 2.0},
                                      {2300, 3000, 0.95, 2.0}};
-  for (bool trunks : {false, true})
-    for (double speed : {0.5, 2.0}) {
-      SCOPED_TRACE(std::string(trunks ? "trunks seen" : "no trunk") + ", speed " +
-                   std::to_string(speed));
-      Sim sim;
-      sim.speed_m_s = speed;
-      sim.from_mm = 0;
-      sim.to_mm = 2650;
-      sim.top_clipped_tree = -1;
-      sim.trunks = trunks;
-      TreeTracker tracker;
-      const auto got = run(tracker, simulate(row, sim));
-      ASSERT_EQ(got.size(), 3u);
-      for (std::size_t i = 0; i < 3; ++i)
-        ASSERT_TRUE(got[i].record.has_width) << i;
-      const double first = got[0].record.width_m - row[0].width_m();
-      const double last = got[2].record.width_m - row[2].width_m();
-      // The mirror adds the seen side's error and twice the trunk's (travel noise of 8 mm, the
-      // trunk's 3 mm): within 15 mm here, 20-36 mm short without it.
-      if (trunks) {
-        EXPECT_NEAR(first, 0, 0.015);
-        EXPECT_NEAR(last, 0, 0.015);
-        EXPECT_NEAR(got[0].record.start_m, row[0].start_mm / 1000.0, 0.015);
-        EXPECT_NEAR(got[2].record.end_m, row[2].end_mm / 1000.0, 0.015);
-      } else {
-        EXPECT_LT(first, -0.018);
-        EXPECT_LT(last, -0.018);
-      }
-      // The middle crown was passed on both sides: its own edges.
-      EXPECT_NEAR(got[1].record.width_m, row[1].width_m(), 0.03);
+  Sim sim;
+  sim.from_mm = 0;
+  sim.to_mm = 2650;
+  with_and_without_trunks(row, sim, [&](const std::vector<Emitted> &got, bool trunks) {
+    const double first = got[0].record.width_m - row[0].width_m();
+    const double last = got[2].record.width_m - row[2].width_m();
+    // The mirror adds the seen side's error and twice the trunk's (travel noise of 8 mm, the
+    // trunk's 3 mm): within 15 mm here, 20-36 mm short without it.
+    if (trunks) {
+      EXPECT_NEAR(first, 0, 0.015);
+      EXPECT_NEAR(last, 0, 0.015);
+      EXPECT_NEAR(got[0].record.start_m, row[0].start_mm / 1000.0, 0.015);
+      EXPECT_NEAR(got[2].record.end_m, row[2].end_mm / 1000.0, 0.015);
+    } else {
+      EXPECT_LT(first, -0.018);
+      EXPECT_LT(last, -0.018);
     }
+    // The middle crown was passed on both sides: its own edges.
+    EXPECT_NEAR(got[1].record.width_m, row[1].width_m(), 0.03);
+  });
 }
 
 // Cameras rolled 1.5 degrees on the rig against the row (a rectification that levels the
@@ -815,17 +823,10 @@ TEST(TreeTracker, ASideTheRigNeverPassedReachesAsFarFromItsTrunkAsTheOther)
 // its height included, is the crown's. The mirrored side doubles what is off.
 TEST(TreeTracker, ARolledViewPlacesATrunkAlongTheRowByItsHeight)
 {
-  const std::vector<TrueTree> row = {{1000, 1750, 0.9, 2.0}, {1650, 2400, 1.0, 2.0},
-                                     {2900, 3500, 0.95, 2.0}};
-  Sim sim;
+  Sim sim = touching_sim();
   sim.speed_m_s = 1.0;
-  sim.to_mm = 6000;
-  sim.top_clipped_tree = -1;
-  sim.valley_from_mm = 300;
-  sim.valley_at = 0;
   sim.trunks = true;
-  sim.segments_at_cut = true;
-  const auto frames = simulate(row, sim);
+  const auto frames = simulate(kTouching, sim);
   std::vector<SimFrame> turned = frames, unknown = frames;
   for (std::size_t f = 0; f < frames.size(); ++f) {
     turned[f].frame = rolled(frames[f].frame, 1.5, -100, 500);
