@@ -993,7 +993,7 @@ GST_START_TEST(test_orchard_canopy_is_the_tree_in_front)
       fail_unless(s.lo_clear_m > 0.05 && s.hi_clear_m > 0.05);
     /* the trunk under the tree in front, where the scene stands it; no other segment has one */
     if (s.selected) {
-      /* The axis is vertical in the camera's frame; rectification turns it a little, so it
+      /* The axis is vertical in the camera's frame; rectification rotates it a little, so it
        * leans in the view: its X where it was read, at the Y the segment gives (the axis point
        * whose rectified Y that is). */
       const double *R = r.R1, *t = r.trunk_camera_m;

@@ -818,7 +818,7 @@ TEST(TreeTracker, ASideTheRigNeverPassedReachesAsFarFromItsTrunkAsTheOther)
 }
 
 // Cameras rolled 1.5 degrees on the rig against the row (a rectification that levels the
-// baseline turns the view too): a vertical trunk leans in the view. Read 600 mm below the crown's
+// baseline rotates the view too): a vertical trunk leans in the view. Read 600 mm below the crown's
 // edges, its X is 16 mm off the X of the crown's middle above it; only its place along the row,
 // its height included, is the crown's. The mirrored side doubles what is off.
 TEST(TreeTracker, ARolledViewPlacesATrunkAlongTheRowByItsHeight)
