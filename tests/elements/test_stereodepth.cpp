@@ -694,8 +694,9 @@ struct OrchardRun {
   int canopy_x = 0, canopy_w = 0; // the canopy meta's left-view box (px)
   int veg_x = 0, veg_w = 0;       // the vegetation meta's left-view box (px)
   double truth_width_m = 0, truth_z_m = 0, truth_x_m = 0, fx = 0, cx = 0;
-  double truth_trunk_x_m = 0; // the trunk's axis at the canopy's centre, rectified-left frame
-  double trunk_camera_m[3] = {0, 0, 0}; // a point of the trunk's axis, left camera frame
+  // The trunk's axis (offset_x_m, trunk_distance_m) at the canopy centre's height, left camera
+  // frame (the axis is vertical there), and the rotation into the rectified-left frame.
+  double trunk_camera_m[3] = {0, 0, 0};
   double R1[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}; // rectified-left from camera-left
   GstTreeStereoDepthStats stats{};
   guint n_points = 0, n_invalid = 0;
@@ -739,14 +740,9 @@ void orchard_handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
   r.truth_width_m = tm->truth.width_m;
   r.truth_z_m = tm->truth.centroid_m[2];
   r.truth_x_m = tm->truth.centroid_m[0];
-  /* the trunk's axis (offset_x_m, trunk_distance_m) at the canopy centre's height, rotated
-   * into the rectified-left frame the segments are in */
-  const double trunk[3] = {tm->truth.offset_x_m, tm->truth.centroid_m[1],
-                           tm->truth.trunk_distance_m};
-  for (int i = 0; i < 3; i++) {
-    r.truth_trunk_x_m += gm->R1[i] * trunk[i];
-    r.trunk_camera_m[i] = trunk[i];
-  }
+  r.trunk_camera_m[0] = tm->truth.offset_x_m;
+  r.trunk_camera_m[1] = tm->truth.centroid_m[1];
+  r.trunk_camera_m[2] = tm->truth.trunk_distance_m;
   for (int i = 0; i < 9; i++)
     r.R1[i] = gm->R1[i];
   const GstTreeStereoVegetationMeta *vm = gst_buffer_get_tree_stereo_vegetation_meta(buf);
@@ -995,12 +991,13 @@ GST_START_TEST(test_orchard_canopy_is_the_tree_in_front)
     if (s.selected) {
       /* The axis is vertical in the camera's frame; rectification rotates it a little, so it
        * leans in the view: its X where it was read, at the Y the segment gives (the axis point
-       * whose rectified Y that is). */
+       * whose rectified Y that is), and at the crown's centre for comparison. */
       const double *R = r.R1, *t = r.trunk_camera_m;
       const double y = (s.trunk_y_m - R[3] * t[0] - R[5] * t[2]) / R[4];
       const double x = R[0] * t[0] + R[1] * y + R[2] * t[2];
       g_print("[ orchard ] trunk at x %.4f m, y %.3f m (truth there %.4f m; at the crown's "
-              "centre %.4f m)\n", s.trunk_m, s.trunk_y_m, x, r.truth_trunk_x_m);
+              "centre %.4f m)\n", s.trunk_m, s.trunk_y_m, x,
+              R[0] * t[0] + R[1] * t[1] + R[2] * t[2]);
       fail_unless(s.trunk_y_m > t[1] + 0.2, "trunk read at y %.3f m, above the crown's bottom",
                   s.trunk_y_m);
       fail_unless(std::abs(s.trunk_m - x) <= 0.005, "trunk at %.4f m, truth %.4f m", s.trunk_m,

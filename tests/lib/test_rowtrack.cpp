@@ -752,7 +752,6 @@ Sim touching_sim()
 {
   Sim sim;
   sim.to_mm = 6000;
-  sim.top_clipped_tree = -1;
   sim.valley_from_mm = 300;
   sim.valley_at = 0;
   sim.segments_at_cut = true;

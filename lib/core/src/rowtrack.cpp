@@ -195,6 +195,14 @@ template <typename Edge> bool all_at_valley(const std::vector<Edge> &edges)
   return std::all_of(edges.begin(), edges.end(), [](const Edge &e) { return e.at_valley; });
 }
 
+// Whether a side is hidden in part, for mirror_hidden_side(): cut at a valley (`valley`), or
+// never driven past (`unpassed`: seen from inside the crown, off the axis only, its edge the limb
+// of a front cluster hiding any behind it that reach further out) while the other side is not
+// at a valley (that one then gives the mirror).
+bool partly_hidden(bool valley, bool unpassed, bool other_valley)
+{
+  return valley || (unpassed && !other_valley);
+}
 
 // Overlap length of [a0, a1] and [b0, b1] (negative: the gap between them).
 double overlap(double a0, double a1, double b0, double b1)
@@ -621,19 +629,14 @@ std::vector<TreeRecord> TreeTracker::emit(std::vector<Track> &done)
     r.end_m = (r.end_seen ? median_of(k.ends) : k.max_hi_mm) * kMmToM;
     if (r.end_m < r.start_m) // a median pair of a tree seen at both ends in different frames
       std::swap(r.start_m, r.end_m);
-    // A side the rig never drove past (the first tree's, the last one's when the run ends before
-    // it) was seen from inside the crown, off the axis only: its edge is the limb of a front
-    // cluster, and one behind it that reaches further out stays hidden. Partly hidden, it takes
-    // the other side mirrored like a side cut at a valley, unless that one is at a valley.
-    const bool lo_valley = all_at_valley(k.lefts), hi_valley = all_at_valley(k.rights);
+    // A side the rig never drove past: the first tree's, the last one's when the run ends before
+    // it (the rig's travel never reached the edge seen nearest the axis).
     const bool lo_unpassed = !k.lefts.empty() && min_position_mm_ > axis_edge(k.lefts, 0, -1);
     const bool hi_unpassed = !k.rights.empty() && max_position_mm_ < axis_edge(k.rights, 0, 1);
-    const bool lo_hidden = lo_valley || (lo_unpassed && !hi_valley);
-    const bool hi_hidden = hi_valley || (hi_unpassed && !lo_valley);
     if (!row && r.start_seen && r.end_seen) {
       double lo = r.start_m / kMmToM, hi = r.end_m / kMmToM;
-      mirror_hidden_side(!k.start_free || (lo_unpassed && k.end_free),
-                         !k.end_free || (hi_unpassed && k.start_free), k.trunks, lo, hi);
+      mirror_hidden_side(partly_hidden(!k.start_free, lo_unpassed, !k.end_free),
+                         partly_hidden(!k.end_free, hi_unpassed, !k.start_free), k.trunks, lo, hi);
       r.start_m = lo * kMmToM;
       r.end_m = hi * kMmToM;
     }
@@ -654,7 +657,9 @@ std::vector<TreeRecord> TreeTracker::emit(std::vector<Track> &done)
         // cluster may stand.
         const double depth_mm = (r.end_m - r.start_m) / kMmToM;
         double lo = axis_edge(k.lefts, depth_mm, -1), hi = axis_edge(k.rights, depth_mm, 1);
-        mirror_hidden_side(lo_hidden, hi_hidden, k.trunks, lo, hi);
+        const bool lo_valley = all_at_valley(k.lefts), hi_valley = all_at_valley(k.rights);
+        mirror_hidden_side(partly_hidden(lo_valley, lo_unpassed, hi_valley),
+                           partly_hidden(hi_valley, hi_unpassed, lo_valley), k.trunks, lo, hi);
         r.width_m = (hi - lo) * kMmToM;
         r.width_frames = int(std::min(k.lefts.size(), k.rights.size()));
       }

@@ -52,7 +52,7 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   if (!(s.near_mm > 0) || !(s.hi_mm > s.lo_mm))
     return kNone;
   const double z0 = s.near_mm, z1 = s.near_mm + (s.hi_mm - s.lo_mm);
-  const double cx = g.cx[0];
+  const double cx = g.cx[0], fy = g.fy > 0 ? g.fy : g.fx;
   const int u0 = clamped(std::floor(cx + g.fx * s.lo_mm / z0), kHalf, size.width - 1 - kHalf);
   const int u1 = clamped(std::ceil(cx + g.fx * s.hi_mm / z0), kHalf, size.width - 1 - kHalf);
   if (u1 - u0 < 2 * kHalf + 1)
@@ -76,7 +76,7 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   if (ground.found && std::abs(ground.normal[1]) > 0.5) {
     const double y_mm =
         -(ground.normal[0] * xm + ground.normal[2] * zm + ground.d) / ground.normal[1];
-    ground_row = std::min(ground_row, g.cy + g.fy * y_mm / zm);
+    ground_row = std::min(ground_row, g.cy + fy * y_mm / zm);
   }
   const int y0 = bottom + 2;
   const int y1 = clamped(y0 + 2.0 / 3.0 * (ground_row - y0), y0, size.height);
@@ -192,7 +192,7 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   // The match sees the trunk's front; its axis stands a radius (half its width) behind.
   const double z_axis = pick_z * (1 + 0.5 * r.len() / g.fx);
   if (row_y_mm)
-    *row_y_mm = (0.5 * (y0 + y1 - 1) - g.cy) * z_axis / (g.fy > 0 ? g.fy : g.fx);
+    *row_y_mm = (0.5 * (y0 + y1 - 1) - g.cy) * z_axis / fy;
   return (u_mid - cx) * z_axis / g.fx;
 }
 

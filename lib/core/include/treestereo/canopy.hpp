@@ -256,11 +256,11 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
 //   one is more than half as wide (two trunks, or a post: no telling which). Its axis stands
 //   half its width behind the front the match saw.
 // `left`, `right`: rectified grey views (CV_8UC1); `vegetation`, `canopy`: CV_8UC1 masks of the
-// view. `y_mm`, when given and a trunk is found: the Y (mm) of the rows' middle at the axis.
+// view. `row_y_mm`, when given and a trunk is found: the Y (mm) of the rows' middle at the axis.
 // Throws BadInput when they do not fit the geometry's view, or the geometry is invalid.
 double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vegetation,
                   const cv::Mat &canopy, const RowSegment &segment, const GroundPlane &ground,
-                  const StereoGeometry &geometry, double *y_mm = nullptr);
+                  const StereoGeometry &geometry, double *row_y_mm = nullptr);
 
 // The share of the mask's pixels within radius_px of a point: how much of a silhouette has depth
 // support. 0 for an empty mask.
