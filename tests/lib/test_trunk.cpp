@@ -127,6 +127,22 @@ TEST(Trunk, TheBareColumnsThatMatchAtTheCrownsDepth)
   EXPECT_NEAR(trunk(q), axis_x(q, left), left.z_mm / q.g.fx);
 }
 
+// A trunk standing in a strip of bare soil (a path, a herbicide strip): the soil on both sides is
+// as bare as the trunk, so every column from the strip's one end to the other is bare. The soil
+// lies at the ground's own depth, deeper than the crown, and does not join the trunk's columns.
+// Its edges are then where the match holds, not where the colour mask ends: within a pixel and a
+// half.
+TEST(Trunk, ATrunkInAStripOfBareSoil)
+{
+  const Bar bar{380, 40, 2000};
+  const Pair p = make_pair({Bar{230, 340, 0, false}, bar});
+  EXPECT_NEAR(trunk(p), axis_x(p, bar), 1.5 * bar.z_mm / p.g.fx);
+  // The strip's soil on one side only, and the trunk at the strip's edge.
+  const Bar edge{230, 40, 2300};
+  const Pair q = make_pair({Bar{230, 300, 0, false}, edge});
+  EXPECT_NEAR(trunk(q), axis_x(q, edge), 1.5 * edge.z_mm / q.g.fx);
+}
+
 TEST(Trunk, NoneWhereNoTrunkCanBeTold)
 {
   // The next row's trunk (6 m) under the crown: deeper than the crown can be.

@@ -21,6 +21,8 @@ constexpr double kMinTrunkMm = 20;  // narrower runs are a twig's edge or noise
 constexpr double kMaxShare = 1.0 / 3; // of the segment across: wider is ground or a wall
 constexpr int kMinRows = 6;         // a band shorter than this tells nothing
 constexpr int kMaxGapPx = 2;        // columns missing inside a run
+constexpr double kSpanPx = 2;       // of disparity about a run's median in bare soil: an upright
+                                    // trunk's is below 1, the rest the match's noise
 
 bool fits(const cv::Mat &m, const cv::Size &size, int type)
 {
@@ -96,52 +98,57 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
       n += vegetation.at<uchar>(y, u) == 0;
     bare[std::size_t(u - u0)] = double(n) / rows;
   }
-  // Column sums of the band (left), refreshed per disparity for the right and the products.
-  std::vector<double> sl(std::size_t(size.width), 0), sll(sl), sr(sl), srr(sl), slr(sl);
-  for (int y = y0; y < y1; ++y) {
-    const uchar *a = left.ptr<uchar>(y);
-    for (int u = u0 - kHalf; u <= u1 + kHalf; ++u) {
-      sl[std::size_t(u)] += a[u];
-      sll[std::size_t(u)] += double(a[u]) * a[u];
-    }
-  }
-  const double n = double(rows) * (2 * kHalf + 1);
-  for (int d = d_lo; d <= d_hi; ++d) {
-    // Columns whose window the right view holds at this disparity.
-    const int ua = std::max(u0, d + kHalf);
-    if (ua > u1)
-      continue;
-    std::fill(sr.begin(), sr.end(), 0.0);
-    std::fill(srr.begin(), srr.end(), 0.0);
-    std::fill(slr.begin(), slr.end(), 0.0);
-    for (int y = y0; y < y1; ++y) {
-      const uchar *a = left.ptr<uchar>(y), *b = right.ptr<uchar>(y);
-      for (int u = ua - kHalf; u <= u1 + kHalf; ++u) {
-        const double r = b[u - d];
-        sr[std::size_t(u)] += r;
-        srr[std::size_t(u)] += r * r;
-        slr[std::size_t(u)] += r * a[u];
+  // Per column of the rows [ya, yb): the best ZNCC over the crown's disparities and where it
+  // peaks. Column sums of the band (left), refreshed per disparity for the right and the
+  // products.
+  const auto match_rows = [&](int ya, int yb, std::vector<double> &best, std::vector<double> &best_d) {
+    std::vector<double> sl(std::size_t(size.width), 0), sll(sl), sr(sl), srr(sl), slr(sl);
+    for (int y = ya; y < yb; ++y) {
+      const uchar *a = left.ptr<uchar>(y);
+      for (int u = u0 - kHalf; u <= u1 + kHalf; ++u) {
+        sl[std::size_t(u)] += a[u];
+        sll[std::size_t(u)] += double(a[u]) * a[u];
       }
     }
-    for (int u = ua; u <= u1; ++u) {
-      double a = 0, aa = 0, b = 0, bb = 0, ab = 0;
-      for (int k = u - kHalf; k <= u + kHalf; ++k) {
-        a += sl[std::size_t(k)];
-        aa += sll[std::size_t(k)];
-        b += sr[std::size_t(k)];
-        bb += srr[std::size_t(k)];
-        ab += slr[std::size_t(k)];
-      }
-      const double va = n * aa - a * a, vb = n * bb - b * b;
-      if (va <= n || vb <= n) // flat: no match to tell
+    const double n = double(yb - ya) * (2 * kHalf + 1);
+    for (int d = d_lo; d <= d_hi; ++d) {
+      // Columns whose window the right view holds at this disparity.
+      const int ua = std::max(u0, d + kHalf);
+      if (ua > u1)
         continue;
-      const double z = (n * ab - a * b) / std::sqrt(va * vb);
-      if (z > best[std::size_t(u - u0)]) {
-        best[std::size_t(u - u0)] = z;
-        best_d[std::size_t(u - u0)] = d;
+      std::fill(sr.begin(), sr.end(), 0.0);
+      std::fill(srr.begin(), srr.end(), 0.0);
+      std::fill(slr.begin(), slr.end(), 0.0);
+      for (int y = ya; y < yb; ++y) {
+        const uchar *a = left.ptr<uchar>(y), *b = right.ptr<uchar>(y);
+        for (int u = ua - kHalf; u <= u1 + kHalf; ++u) {
+          const double r = b[u - d];
+          sr[std::size_t(u)] += r;
+          srr[std::size_t(u)] += r * r;
+          slr[std::size_t(u)] += r * a[u];
+        }
+      }
+      for (int u = ua; u <= u1; ++u) {
+        double a = 0, aa = 0, b = 0, bb = 0, ab = 0;
+        for (int k = u - kHalf; k <= u + kHalf; ++k) {
+          a += sl[std::size_t(k)];
+          aa += sll[std::size_t(k)];
+          b += sr[std::size_t(k)];
+          bb += srr[std::size_t(k)];
+          ab += slr[std::size_t(k)];
+        }
+        const double va = n * aa - a * a, vb = n * bb - b * b;
+        if (va <= n || vb <= n) // flat: no match to tell
+          continue;
+        const double z = (n * ab - a * b) / std::sqrt(va * vb);
+        if (z > best[std::size_t(u - u0)]) {
+          best[std::size_t(u - u0)] = z;
+          best_d[std::size_t(u - u0)] = d;
+        }
       }
     }
-  }
+  };
+  match_rows(y0, y1, best, best_d);
 
   // Runs of bare columns: the trunk fills the band's rows, the ground behind it seldom does.
   struct Run {
@@ -157,42 +164,105 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
     else
       runs.push_back({i, i});
   }
+  // In bare soil (below): the rows of the band's upper half, where the soil seen behind the
+  // trunk lies further behind it than near its foot. A column matched there at the crown's depth
+  // with its peak inside the crown's disparities (bare soil behind matches at the range's end if
+  // at all).
+  std::vector<double> best_up, best_d_up;
+  const int y_up = y0 + std::max(kMinRows, rows / 2);
+  const auto matched = [&](int i) {
+    if (best_up.empty()) {
+      best_up.assign(std::size_t(nc), -1.0);
+      best_d_up.assign(std::size_t(nc), 0.0);
+      match_rows(y0, y_up, best_up, best_d_up);
+    }
+    const double d = best_d_up[std::size_t(i)];
+    return best_up[std::size_t(i)] >= kMinZncc && d > d_lo && d < d_hi;
+  };
   const double seg_mm = s.hi_mm - s.lo_mm;
-  const Run *pick = nullptr;
-  int second = 0;
-  double pick_z = 0;
+  // The candidate trunks: their columns, the depth of their front and the middle of the rows
+  // matched.
+  struct Candidate {
+    Run run;
+    double z, row;
+  };
+  std::vector<Candidate> found;
+  const auto consider = [&](const Run &r, std::vector<double> ds, double row) {
+    const double disparity = median(ds) - g.doffs();
+    if (disparity <= 0)
+      return;
+    const double z = g.fx * g.baseline_mm / disparity;
+    const double width_mm = r.len() * z / g.fx;
+    if (width_mm >= kMinTrunkMm && width_mm <= kMaxShare * seg_mm)
+      found.push_back({r, z, row});
+  };
   for (const Run &r : runs) {
-    // Most of it matches at the crown's depth (a bare patch of ground behind does not).
+    // Most of it matches at the crown's depth (a bare patch of ground behind does not): the
+    // trunk alone.
     std::vector<double> ds;
     for (int i = r.a; i <= r.b; ++i)
       if (best[std::size_t(i)] >= kMinZncc)
         ds.push_back(best_d[std::size_t(i)]);
-    if (2 * int(ds.size()) < r.len())
+    const std::size_t before = found.size();
+    if (2 * int(ds.size()) >= r.len())
+      consider(r, ds, 0.5 * (y0 + y1 - 1));
+    if (found.size() > before)
       continue;
-    const double disparity = median(ds) - g.doffs();
-    if (disparity <= 0)
-      continue;
-    const double z = g.fx * g.baseline_mm / disparity;
-    const double width_mm = r.len() * z / g.fx;
-    if (width_mm < kMinTrunkMm || width_mm > kMaxShare * seg_mm)
-      continue;
-    if (!pick || r.len() > pick->len()) {
-      if (pick)
-        second = std::max(second, pick->len());
-      pick = &r;
-      pick_z = z;
-    } else {
-      second = std::max(second, r.len());
+    // Otherwise the trunk may stand in bare soil (a path, a herbicide strip) that widened its
+    // run: the soil lies deeper than the crown and matches there only where its depth, drifting
+    // along the row, passes through the crown's. A trunk is upright and stands at one depth:
+    // stretches of matched columns (gaps up to kMaxGapPx) with three quarters of them within
+    // kSpanPx of their median disparity, trimmed to the first and last of those.
+    for (int i = r.a; i <= r.b;) {
+      if (!matched(i)) {
+        ++i;
+        continue;
+      }
+      std::vector<int> cols;
+      int last = i;
+      for (int j = i; j <= r.b && j - last <= kMaxGapPx + 1; ++j)
+        if (matched(j)) {
+          cols.push_back(j);
+          last = j;
+        }
+      i = last + 1;
+      std::vector<double> dd;
+      for (int c : cols)
+        dd.push_back(best_d_up[std::size_t(c)]);
+      std::vector<double> sorted = dd;
+      const double mid = median(sorted);
+      Run t{-1, -1};
+      std::vector<double> kept;
+      for (std::size_t k = 0; k < cols.size(); ++k)
+        if (std::abs(dd[k] - mid) <= kSpanPx) {
+          t.a = t.a < 0 ? cols[k] : t.a;
+          t.b = cols[k];
+          kept.push_back(dd[k]);
+        }
+      if (4 * kept.size() >= 3 * cols.size())
+        consider(t, kept, 0.5 * (y0 + y_up - 1));
     }
   }
-  if (!pick || 2 * second > pick->len())
+  const Candidate *pick = nullptr;
+  int second = 0;
+  for (const Candidate &c : found) {
+    if (!pick || c.run.len() > pick->run.len()) {
+      if (pick)
+        second = std::max(second, pick->run.len());
+      pick = &c;
+    } else {
+      second = std::max(second, c.run.len());
+    }
+  }
+  if (!pick || 2 * second > pick->run.len())
     return kNone;
-  const Run &r = *pick;
+  const double pick_z = pick->z;
+  const Run &r = pick->run;
   const double u_mid = u0 + 0.5 * (r.a + r.b);
   // The match sees the trunk's front; its axis stands a radius (half its width) behind.
   const double z_axis = pick_z * (1 + 0.5 * r.len() / g.fx);
   if (row_y_mm)
-    *row_y_mm = (0.5 * (y0 + y1 - 1) - g.cy) * z_axis / fy;
+    *row_y_mm = (pick->row - g.cy) * z_axis / fy;
   return (u_mid - cx) * z_axis / g.fx;
 }
 
