@@ -101,7 +101,8 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   // Per column of the rows [ya, yb): the best ZNCC over the crown's disparities and where it
   // peaks. Column sums of the band (left), refreshed per disparity for the right and the
   // products.
-  const auto match_rows = [&](int ya, int yb, std::vector<double> &best, std::vector<double> &best_d) {
+  const auto match_rows = [&](int ya, int yb, std::vector<double> &score,
+                              std::vector<double> &score_d) {
     std::vector<double> sl(std::size_t(size.width), 0), sll(sl), sr(sl), srr(sl), slr(sl);
     for (int y = ya; y < yb; ++y) {
       const uchar *a = left.ptr<uchar>(y);
@@ -141,9 +142,9 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
         if (va <= n || vb <= n) // flat: no match to tell
           continue;
         const double z = (n * ab - a * b) / std::sqrt(va * vb);
-        if (z > best[std::size_t(u - u0)]) {
-          best[std::size_t(u - u0)] = z;
-          best_d[std::size_t(u - u0)] = d;
+        if (z > score[std::size_t(u - u0)]) {
+          score[std::size_t(u - u0)] = z;
+          score_d[std::size_t(u - u0)] = d;
         }
       }
     }
