@@ -151,20 +151,26 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   };
   match_rows(y0, y1, best, best_d);
 
-  // Runs of bare columns: the trunk fills the band's rows, the ground behind it seldom does.
+  // Runs of the columns [a, b] where `holds` does, kMaxGapPx missing at most inside one.
   struct Run {
     int a, b;
     int len() const { return b - a + 1; }
   };
-  std::vector<Run> runs;
-  for (int i = 0; i < nc; ++i) {
-    if (bare[std::size_t(i)] < kMinBare)
-      continue;
-    if (!runs.empty() && i - runs.back().b <= kMaxGapPx + 1)
-      runs.back().b = i;
-    else
-      runs.push_back({i, i});
-  }
+  const auto runs_where = [](int a, int b, const auto &holds) {
+    std::vector<Run> out;
+    for (int i = a; i <= b; ++i) {
+      if (!holds(i))
+        continue;
+      if (!out.empty() && i - out.back().b <= kMaxGapPx + 1)
+        out.back().b = i;
+      else
+        out.push_back({i, i});
+    }
+    return out;
+  };
+  // Runs of bare columns: the trunk fills the band's rows, the ground behind it seldom does.
+  const std::vector<Run> runs =
+      runs_where(0, nc - 1, [&](int i) { return bare[std::size_t(i)] >= kMinBare; });
   // In bare soil (below): the rows of the band's upper half, where the soil seen behind the
   // trunk lies further behind it than near its foot. A column matched there at the crown's depth
   // with its peak inside the crown's disparities (bare soil behind matches at the range's end if
@@ -188,14 +194,17 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
     double z, row;
   };
   std::vector<Candidate> found;
+  // Whether the run, matched at the disparities `ds`, is as wide as a trunk (then a candidate).
   const auto consider = [&](const Run &r, std::vector<double> ds, double row) {
     const double disparity = median(ds) - g.doffs();
     if (disparity <= 0)
-      return;
+      return false;
     const double z = g.fx * g.baseline_mm / disparity;
     const double width_mm = r.len() * z / g.fx;
-    if (width_mm >= kMinTrunkMm && width_mm <= kMaxShare * seg_mm)
-      found.push_back({r, z, row});
+    if (width_mm < kMinTrunkMm || width_mm > kMaxShare * seg_mm)
+      return false;
+    found.push_back({r, z, row});
+    return true;
   };
   for (const Run &r : runs) {
     // Most of it matches at the crown's depth (a bare patch of ground behind does not): the
@@ -204,43 +213,29 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
     for (int i = r.a; i <= r.b; ++i)
       if (best[std::size_t(i)] >= kMinZncc)
         ds.push_back(best_d[std::size_t(i)]);
-    const std::size_t before = found.size();
-    if (2 * int(ds.size()) >= r.len())
-      consider(r, ds, 0.5 * (y0 + y1 - 1));
-    if (found.size() > before)
+    if (2 * int(ds.size()) >= r.len() && consider(r, ds, 0.5 * (y0 + y1 - 1)))
       continue;
     // Otherwise the trunk may stand in bare soil (a path, a herbicide strip) that widened its
     // run: the soil lies deeper than the crown and matches there only where its depth, drifting
     // along the row, passes through the crown's. A trunk is upright and stands at one depth:
     // stretches of matched columns (gaps up to kMaxGapPx) with three quarters of them within
     // kSpanPx of their median disparity, trimmed to the first and last of those.
-    for (int i = r.a; i <= r.b;) {
-      if (!matched(i)) {
-        ++i;
-        continue;
-      }
-      std::vector<int> cols;
-      int last = i;
-      for (int j = i; j <= r.b && j - last <= kMaxGapPx + 1; ++j)
-        if (matched(j)) {
-          cols.push_back(j);
-          last = j;
-        }
-      i = last + 1;
+    for (const Run &stretch : runs_where(r.a, r.b, matched)) {
       std::vector<double> dd;
-      for (int c : cols)
-        dd.push_back(best_d_up[std::size_t(c)]);
-      std::vector<double> sorted = dd;
+      for (int i = stretch.a; i <= stretch.b; ++i)
+        if (matched(i))
+          dd.push_back(best_d_up[std::size_t(i)]);
+      std::vector<double> sorted = dd; // median() reorders
       const double mid = median(sorted);
       Run t{-1, -1};
       std::vector<double> kept;
-      for (std::size_t k = 0; k < cols.size(); ++k)
-        if (std::abs(dd[k] - mid) <= kSpanPx) {
-          t.a = t.a < 0 ? cols[k] : t.a;
-          t.b = cols[k];
-          kept.push_back(dd[k]);
+      for (int i = stretch.a; i <= stretch.b; ++i)
+        if (matched(i) && std::abs(best_d_up[std::size_t(i)] - mid) <= kSpanPx) {
+          t.a = t.a < 0 ? i : t.a;
+          t.b = i;
+          kept.push_back(best_d_up[std::size_t(i)]);
         }
-      if (4 * kept.size() >= 3 * cols.size())
+      if (4 * kept.size() >= 3 * dd.size())
         consider(t, kept, 0.5 * (y0 + y_up - 1));
     }
   }
@@ -257,11 +252,10 @@ double find_trunk(const cv::Mat &left, const cv::Mat &right, const cv::Mat &vege
   }
   if (!pick || 2 * second > pick->run.len())
     return kNone;
-  const double pick_z = pick->z;
   const Run &r = pick->run;
   const double u_mid = u0 + 0.5 * (r.a + r.b);
   // The match sees the trunk's front; its axis stands a radius (half its width) behind.
-  const double z_axis = pick_z * (1 + 0.5 * r.len() / g.fx);
+  const double z_axis = pick->z * (1 + 0.5 * r.len() / g.fx);
   if (row_y_mm)
     *row_y_mm = (pick->row - g.cy) * z_axis / fy;
   return (u_mid - cx) * z_axis / g.fx;

@@ -252,7 +252,7 @@ CanopyDepth canopy_depth(const cv::Mat &left, const cv::Mat &right, const Silhou
 //   half match the right view at a depth of the crown: from its front (segment.near_mm) to as
 //   deep behind it as it is long, ZNCC >= 0.6 over a window of 5 columns. A patch of bare soil
 //   behind lies deeper than the crown and does not match there.
-// - In bare soil (a path, a herbicide strip under the row): a run that is not a trunk so (too
+// - In bare soil (a path, a herbicide strip under the row): a run that is not a trunk whole (too
 //   wide, or mostly unmatched) may hold one. Matched again over the band's upper half, where the
 //   soil seen behind the trunk lies further behind it, its stretches of columns whose best
 //   disparity lies inside the crown's range, three quarters of them within 2 px of their median
