@@ -110,6 +110,7 @@
 #include "elements.hpp"
 #include "properties.hpp"
 
+#include "treestereo/depth.hpp"
 #include "treestereo/metrics.hpp"
 #include "treestereo/rowmap.hpp"
 #include "treestereo/rowtrack.hpp"
@@ -438,13 +439,24 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
   // about a sixth of the densification's grid points carry the front leaves' depth on a back
   // leaf seen through a gap, and they read the travel about 0.5 % short (docs/results.md,
   // "Travel on the keypoints"). Fewer keypoints: every point.
+  // The keypoints of the whole view count, not only the canopy's: the rig moves past a static
+  // scene, and stereodepth drops points off the tree in front (its neighbours, the next row,
+  // the grass) for what they are, not for their depth. The canopy's alone failed where the tree
+  // in front had just entered at the view's edge (its points all outside the previous view) and
+  // read 3-7 % short where it was leaving (a narrow strip at one depth, where a turn and a move
+  // along the row look alike; docs/results.md, "The travel on the whole view"). Depths outside
+  // lib's default range are left out: a false match at a few centimetres would shrink the
+  // coarse search's steps.
   std::vector<PixelPoint> points;
   if (pm) {
     const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
     const guint width = guint(geometry.view_size.width);
-    points = treestereo::gst::pixel_points_of(pm, mm, width, false);
+    const DepthParams range;
+    points = treestereo::gst::pixel_points_of(pm, mm, width, false, range.min_depth_mm,
+                                              range.max_depth_mm);
     if (points.size() < kMinTravelKeypoints)
-      points = treestereo::gst::pixel_points_of(pm, mm, width);
+      points = treestereo::gst::pixel_points_of(pm, mm, width, true, range.min_depth_mm,
+                                                range.max_depth_mm);
   }
   const bool had_views = a.odometer->has_previous();
   const auto t0 = std::chrono::steady_clock::now();
@@ -455,11 +467,11 @@ static GstTreeStereoTravelSource frame_travel(GstTreeMetrics *self, GstBuffer *b
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     GST_DEBUG_OBJECT(self,
-                     "travel %s: %.1f mm (from the %s frame: %zu points, %zu tracked, %zu "
-                     "inliers, %.2f px) in %.1f ms",
+                     "travel %s: %.1f mm (from the %s frame: %zu of %zu points, coarse search "
+                     "%.1f mm, %zu tracked, %zu inliers, %.2f px) in %.1f ms",
                      step.found ? "found" : "not found", step.travel_mm,
-                     step.from_key ? "key" : "previous", m.points, m.tracked, m.inliers, m.rms_px,
-                     ms);
+                     step.from_key ? "key" : "previous", m.points, points.size(), m.prior_mm,
+                     m.tracked, m.inliers, m.rms_px, ms);
     const double dt_s =
         had_pts ? double(GST_CLOCK_DIFF(prev_pts, pts)) / double(GST_SECOND) : 0.0;
     if (step.found) {

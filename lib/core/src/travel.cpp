@@ -373,16 +373,23 @@ std::vector<cv::Mat> pyramid(const cv::Mat &grey, const TravelParams &p)
 // reduced to about kSearchWidthPx: each point of depth Z stood f T / Z px further right (T
 // positive) in the previous view. Scored by the mean absolute difference of 5x5 patches,
 // capped per point so that occlusions and points leaving the view weigh no more than a miss.
+// With an expected travel (finite `expected_mm`) only expected_mm +- kExpectedSlack of it (at
+// least kExpectedSlackMm) is tried, within the range.
 constexpr int kSearchWidthPx = 160;
 constexpr int kSearchHalf = 2;
 constexpr double kSearchCap = 40.0;
+// The expected travel's window: a rig's speed changes by far less than half between two frames
+// (a tractor gaining 2 m/s^2 changes a 7 frames/s step by 40 mm), and a standing rig that
+// starts moves a few centimetres in a frame.
+constexpr double kExpectedSlack = 0.5;
+constexpr double kExpectedSlackMm = 50.0;
 // Points the search scores at most (an even share of those tracked): one travel for all of them
 // needs no more, and the search is the dearest step after the tracking.
 constexpr std::size_t kSearchPoints = 150;
 
 double search_travel(const cv::Mat &prev, const cv::Mat &cur, double scale,
                      const std::vector<cv::Point2f> &px, const std::vector<double> &z, double fx,
-                     double max_mm)
+                     double max_mm, double expected_mm)
 {
   double c = scale;
   cv::Mat a = cur, b = prev;
@@ -408,13 +415,22 @@ double search_travel(const cv::Mat &prev, const cv::Mat &cur, double scale,
     z_min = std::min(z_min, z[std::size_t(i)]);
   }
   if (!std::isfinite(z_min))
-    return 0;
+    return std::isfinite(expected_mm) ? std::clamp(expected_mm, -max_mm, max_mm) : 0.0;
   const double fc = fx * c;
   // Steps of half a pixel of shift for the nearest point.
   const double step = 0.5 * z_min / fc;
-  const int steps = std::min(2000, int(std::ceil(max_mm / step)));
+  double lo_mm = -max_mm, hi_mm = max_mm;
+  if (std::isfinite(expected_mm)) {
+    const double slack = std::max(kExpectedSlackMm, kExpectedSlack * std::abs(expected_mm));
+    lo_mm = std::max(lo_mm, expected_mm - slack);
+    hi_mm = std::min(hi_mm, expected_mm + slack);
+    if (lo_mm > hi_mm) // expected beyond the range: its nearer end
+      lo_mm = hi_mm = expected_mm < 0 ? -max_mm : max_mm;
+  }
+  const int k_lo = std::max(-2000, int(std::floor(lo_mm / step)));
+  const int k_hi = std::min(2000, int(std::ceil(hi_mm / step)));
   double best_t = 0, best = std::numeric_limits<double>::infinity();
-  for (int k = -steps; k <= steps; ++k) {
+  for (int k = k_lo; k <= k_hi; ++k) {
     const double t = k * step;
     double score = 0;
     for (int i = 0; i < n; ++i) {
@@ -658,7 +674,8 @@ double huber_cost(const std::vector<Tracked> &pts, const StereoGeometry &g, cons
 
 Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, const cv::Mat &left,
                        const cv::Mat &right, const std::vector<PixelPoint> &points,
-                       const StereoGeometry &g, const TravelParams &p, const cv::Vec3d &along)
+                       const StereoGeometry &g, const TravelParams &p, const cv::Vec3d &along,
+                       double expected_mm)
 {
   validate(p);
   require_valid(g, "the rig's motion", "estimate_motion");
@@ -726,7 +743,7 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
       px.push_back(points[std::size_t(use[k])].px);
       z.push_back(points[std::size_t(use[k])].p.z);
     }
-    guess = search_travel(grey[0], grey[2], s, px, z, g.fx, p.max_travel_mm);
+    guess = search_travel(grey[0], grey[2], s, px, z, g.fx, p.max_travel_mm, expected_mm);
   }
   out.prior_mm = guess;
   // A point that travel carries out of the previous views cannot be tracked: when some are,
@@ -878,6 +895,7 @@ void Odometer::reset()
     m.release();
   since_key_mm_ = 0;
   last_step_mm_ = 0;
+  has_step_ = false;
   key_is_prev_ = true;
 }
 
@@ -890,12 +908,22 @@ OdometryStep Odometer::add(const cv::Mat &left, const cv::Mat &right,
                       prev_[0].type() == left.type() && right.size() == left.size() &&
                       right.type() == left.type();
   if (usable) {
+    // The last step is the next one's likely size: the coarse search looks near it (a repeating
+    // texture matches at every repeat), and over the whole range when that finds nothing (a
+    // jolt).
+    const auto measure = [&](const cv::Mat *from, double expected) {
+      Motion m = estimate_motion(from[0], from[1], left, right, points, geometry, params_.travel,
+                                 along, has_step_ ? expected : kNoExpectedTravel);
+      if (!m.found && has_step_)
+        m = estimate_motion(from[0], from[1], left, right, points, geometry, params_.travel,
+                            along);
+      return m;
+    };
     // From the key frame while this frame is likely within the span of it; a key frame whose
     // tracks fail (a frame of sky, a turn) leaves the previous frame to try.
     if (!key_is_prev_ &&
         std::abs(since_key_mm_ + last_step_mm_) <= params_.key_span_mm) {
-      const Motion m =
-          estimate_motion(key_[0], key_[1], left, right, points, geometry, params_.travel, along);
+      const Motion m = measure(key_, since_key_mm_ + last_step_mm_);
       if (m.found && std::isfinite(m.travel_mm)) {
         out.found = out.from_key = true;
         out.travel_mm = m.travel_mm - since_key_mm_;
@@ -904,8 +932,7 @@ OdometryStep Odometer::add(const cv::Mat &left, const cv::Mat &right,
       }
     }
     if (!out.found) {
-      const Motion m = estimate_motion(prev_[0], prev_[1], left, right, points, geometry,
-                                       params_.travel, along);
+      const Motion m = measure(prev_, last_step_mm_);
       if (m.found && std::isfinite(m.travel_mm)) {
         out.found = true;
         out.travel_mm = m.travel_mm;
@@ -932,6 +959,7 @@ OdometryStep Odometer::add(const cv::Mat &left, const cv::Mat &right,
   }
   if (!out.found)
     last_step_mm_ = 0;
+  has_step_ = out.found;
   return out;
 }
 

@@ -8,7 +8,7 @@
 //  2. A coarse search over the travel finds where the points stood in the previous left view
 //     (a point at depth Z stood fx T / Z px further right for a travel T): the start of the
 //     tracks, so that large motions (2 m/s at 7 frames/s is 250 px at 1296 px) need no deep
-//     pyramid.
+//     pyramid. Near the expected travel when one is given (the odometer gives the last step).
 //  3. Both pixels are tracked back into the previous left and right views with pyramidal
 //     Lucas-Kanade; a track must come back to where it started (forward-backward check), and
 //     the two previous pixels must lie on one rectified row.
@@ -42,6 +42,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace treestereo
@@ -151,12 +152,20 @@ struct Motion {
 // axes, as RowDirection::direction() gives it (is_row_direction()): the travel is the rig's
 // displacement along it. Not the camera's x axis: on cameras yawed 5 degrees on the rig, x would
 // read the travel 0.4 % short.
+// `expected_mm`: the travel the rig likely made (mm, as Motion::prior_mm counts it), such as
+// the last frame's; kNoExpectedTravel: unknown. Given, step 2 searches only within half of it
+// (at least 50 mm) either side: a repeating texture (a brick wall, a trellis, evenly spaced
+// posts or trees) matches at every repeat, and over the whole range a repeat nearer zero may
+// win. On the drive-by at 2 m/s, about one frame in 50 of the whole search's guesses sent every
+// track astray (docs/results.md, "The travel on the whole view").
 // found = false when too few points track or agree. Throws BadInput on inconsistent input,
 // BadSettings on parameters out of range.
+constexpr double kNoExpectedTravel = std::numeric_limits<double>::quiet_NaN();
 Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, const cv::Mat &left,
                        const cv::Mat &right, const std::vector<PixelPoint> &points,
                        const StereoGeometry &geometry, const TravelParams &params = TravelParams(),
-                       const cv::Vec3d &along = cv::Vec3d(1, 0, 0));
+                       const cv::Vec3d &along = cv::Vec3d(1, 0, 0),
+                       double expected_mm = kNoExpectedTravel);
 
 // ---- The travel over a sequence: key frames ----
 //
@@ -166,7 +175,9 @@ Motion estimate_motion(const cv::Mat &prev_left, const cv::Mat &prev_right, cons
 // a key frame instead, as long as the travel since that key frame stays within key_span_mm; the
 // position then carries one estimate's error per key frame, not per frame. At 7 frames/s and a
 // 300 mm span that is one key frame in four at 0.5 m/s, in two at 1 m/s, and every frame from
-// about 2 m/s on (where the tracks over a longer span would thin out).
+// about 2 m/s on (where the tracks over a longer span would thin out). Each estimate's coarse
+// search looks near the travel the last step makes likely, and over the whole range when that
+// finds nothing.
 struct OdometerParams {
   TravelParams travel;
   // The travel from the key frame to the frame measured, at most (mm); 0: always the previous
@@ -209,6 +220,7 @@ private:
   cv::Mat key_[2], prev_[2];
   double since_key_mm_ = 0; // travel from the key frame to the previous frame
   double last_step_mm_ = 0; // the last step measured: the next one's likely size
+  bool has_step_ = false;   // the last frame's step was measured
   bool key_is_prev_ = true;
 };
 
