@@ -287,6 +287,16 @@ void handoff(GstElement *, GstBuffer *buf, GstPad *, gpointer data)
   r.frames.push_back(f);
 }
 
+/* A probe's buffer made writable in its place (NULL: the probe saw no buffer). */
+GstBuffer *writable_buffer(GstPadProbeInfo *info)
+{
+  if (!(GST_PAD_PROBE_INFO_TYPE(info) & GST_PAD_PROBE_TYPE_BUFFER))
+    return nullptr;
+  GstBuffer *buf = gst_buffer_make_writable(GST_PAD_PROBE_INFO_BUFFER(info));
+  GST_PAD_PROBE_INFO_DATA(info) = buf;
+  return buf;
+}
+
 /* Blanks the pixels of buffer number `target` (from 0) on their way into treemetrics: its metas
  * stay, its views show nothing to track. */
 struct Blank {
@@ -298,8 +308,7 @@ GstPadProbeReturn blank_frame(GstPad *, GstPadProbeInfo *info, gpointer data)
   Blank &b = *static_cast<Blank *>(data);
   if (GST_PAD_PROBE_INFO_TYPE(info) & GST_PAD_PROBE_TYPE_BUFFER) {
     if (b.seen++ == b.target) {
-      GstBuffer *buf = gst_buffer_make_writable(GST_PAD_PROBE_INFO_BUFFER(info));
-      GST_PAD_PROBE_INFO_DATA(info) = buf;
+      GstBuffer *buf = writable_buffer(info);
       GstMapInfo map;
       fail_unless(gst_buffer_map(buf, &map, GST_MAP_WRITE));
       std::memset(map.data, 128, map.size);
@@ -314,9 +323,7 @@ GstPadProbeReturn blank_frame(GstPad *, GstPadProbeInfo *info, gpointer data)
 GstPadProbeReturn scale_grid_depths(GstPad *, GstPadProbeInfo *info, gpointer data)
 {
   const double scale = *static_cast<const double *>(data);
-  if (GST_PAD_PROBE_INFO_TYPE(info) & GST_PAD_PROBE_TYPE_BUFFER) {
-    GstBuffer *buf = gst_buffer_make_writable(GST_PAD_PROBE_INFO_BUFFER(info));
-    GST_PAD_PROBE_INFO_DATA(info) = buf;
+  if (GstBuffer *buf = writable_buffer(info)) {
     GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(buf);
     fail_unless(pm != nullptr && !pm->dense && pm->stats.n_grid > 0);
     for (guint i = pm->n_points - std::min(pm->stats.n_grid, pm->n_points); i < pm->n_points; i++) {
@@ -335,9 +342,7 @@ GstPadProbeReturn scale_grid_depths(GstPad *, GstPadProbeInfo *info, gpointer da
 GstPadProbeReturn drop_left_of(GstPad *, GstPadProbeInfo *info, gpointer data)
 {
   const double fraction = *static_cast<const double *>(data);
-  if (GST_PAD_PROBE_INFO_TYPE(info) & GST_PAD_PROBE_TYPE_BUFFER) {
-    GstBuffer *buf = gst_buffer_make_writable(GST_PAD_PROBE_INFO_BUFFER(info));
-    GST_PAD_PROBE_INFO_DATA(info) = buf;
+  if (GstBuffer *buf = writable_buffer(info)) {
     GstTreeStereoPointsMeta *pm = gst_buffer_get_tree_stereo_points_meta(buf);
     const GstTreeStereoMatchesMeta *mm = gst_buffer_get_tree_stereo_matches_meta(buf);
     const GstTreeStereoGeometryMeta *gm = gst_buffer_get_tree_stereo_geometry_meta(buf);

@@ -378,10 +378,11 @@ std::vector<cv::Mat> pyramid(const cv::Mat &grey, const TravelParams &p)
 constexpr int kSearchWidthPx = 160;
 constexpr int kSearchHalf = 2;
 constexpr double kSearchCap = 40.0;
-// The expected travel's window: a rig's speed changes by far less than half between two frames
-// (a tractor gaining 2 m/s^2 changes a 7 frames/s step by 40 mm), and a standing rig that
-// starts moves a few centimetres in a frame.
-constexpr double kExpectedSlack = 0.5;
+// The expected travel's window: a rig's speed changes by far less than a quarter between two
+// frames (a tractor gaining 2 m/s^2 changes a 7 frames/s step by 40 mm, a seventh of a 2 m/s
+// step), and a standing rig that starts moves a few centimetres in a frame. Half of it let a
+// key frame two steps back match at one step on the drive-by (1 m/s, seed 2).
+constexpr double kExpectedSlack = 0.25;
 constexpr double kExpectedSlackMm = 50.0;
 // Points the search scores at most (an even share of those tracked): one travel for all of them
 // needs no more, and the search is the dearest step after the tracking.

@@ -153,8 +153,8 @@ struct Motion {
 // displacement along it. Not the camera's x axis: on cameras yawed 5 degrees on the rig, x would
 // read the travel 0.4 % short.
 // `expected_mm`: the travel the rig likely made (mm, as Motion::prior_mm counts it), such as
-// the last frame's; kNoExpectedTravel: unknown. Given, step 2 searches only within half of it
-// (at least 50 mm) either side: a repeating texture (a brick wall, a trellis, evenly spaced
+// the last frame's; kNoExpectedTravel: unknown. Given, step 2 searches only within a quarter of
+// it (at least 50 mm) either side: a repeating texture (a brick wall, a trellis, evenly spaced
 // posts or trees) matches at every repeat, and over the whole range a repeat nearer zero may
 // win. On the drive-by at 2 m/s, about one frame in 50 of the whole search's guesses sent every
 // track astray (docs/results.md, "The travel on the whole view").
