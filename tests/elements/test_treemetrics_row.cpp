@@ -306,15 +306,13 @@ struct Blank {
 GstPadProbeReturn blank_frame(GstPad *, GstPadProbeInfo *info, gpointer data)
 {
   Blank &b = *static_cast<Blank *>(data);
-  if (GST_PAD_PROBE_INFO_TYPE(info) & GST_PAD_PROBE_TYPE_BUFFER) {
-    if (b.seen++ == b.target) {
-      GstBuffer *buf = writable_buffer(info);
-      GstMapInfo map;
-      fail_unless(gst_buffer_map(buf, &map, GST_MAP_WRITE));
-      std::memset(map.data, 128, map.size);
-      gst_buffer_unmap(buf, &map);
-    }
-  }
+  if (!(GST_PAD_PROBE_INFO_TYPE(info) & GST_PAD_PROBE_TYPE_BUFFER) || b.seen++ != b.target)
+    return GST_PAD_PROBE_OK;
+  GstBuffer *buf = writable_buffer(info);
+  GstMapInfo map;
+  fail_unless(gst_buffer_map(buf, &map, GST_MAP_WRITE));
+  std::memset(map.data, 128, map.size);
+  gst_buffer_unmap(buf, &map);
   return GST_PAD_PROBE_OK;
 }
 

@@ -2,6 +2,7 @@
 #include "treestereo/depth.hpp"
 #include "treestereo/stats.hpp"
 
+#include "simple_geometry.hpp"
 #include "typed_error.hpp"
 
 #include <opencv2/calib3d.hpp>
@@ -56,17 +57,6 @@ cv::Point2d project(const cv::Matx34d &P, const cv::Point3d &X)
 {
   const cv::Vec3d h = P * cv::Vec4d(X.x, X.y, X.z, 1.0);
   return {h[0] / h[2], h[1] / h[2]};
-}
-
-StereoGeometry simple_geometry(cv::Size size, double f, double baseline)
-{
-  StereoGeometry g;
-  g.view_size = size;
-  g.fx = g.fy = f;
-  g.cx[LEFT] = g.cx[RIGHT] = size.width / 2.0;
-  g.cy = size.height / 2.0;
-  g.baseline_mm = baseline;
-  return g;
 }
 
 // Matches of points at known depths (x, y spread over the view).

@@ -3,6 +3,7 @@
 #include "treestereo/canopy.hpp"
 #include "treestereo/metrics.hpp"
 #include "treestereo/stats.hpp"
+#include "simple_geometry.hpp"
 
 #include <opencv2/imgproc.hpp>
 
@@ -19,13 +20,7 @@ namespace {
 
 StereoGeometry camera()
 {
-  StereoGeometry g;
-  g.view_size = cv::Size(1296, 972);
-  g.fx = g.fy = 1100;
-  g.cx[LEFT] = g.cx[RIGHT] = 648;
-  g.cy = 486;
-  g.baseline_mm = 50;
-  return g;
+  return simple_geometry(cv::Size(1296, 972), 1100, 50);
 }
 
 cv::Vec3d ray(const StereoGeometry &g, double u, double v)

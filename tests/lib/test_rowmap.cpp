@@ -5,6 +5,7 @@
 #include "treestereo/errors.hpp"
 #include "treestereo/rowmap.hpp"
 #include "treestereo/spray.hpp"
+#include "simple_geometry.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -26,13 +27,7 @@ namespace {
 
 StereoGeometry camera()
 {
-  StereoGeometry g;
-  g.view_size = cv::Size(1296, 972);
-  g.fx = g.fy = 1100;
-  g.cx[LEFT] = g.cx[RIGHT] = 648;
-  g.cy = 486;
-  g.baseline_mm = 50;
-  return g;
+  return simple_geometry(cv::Size(1296, 972), 1100, 50);
 }
 
 constexpr double kCameraHeight = 950;

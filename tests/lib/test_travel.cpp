@@ -5,6 +5,7 @@
 
 #include "treestereo/rectify.hpp"
 #include "treestereo/scene.hpp"
+#include "simple_geometry.hpp"
 #include "typed_error.hpp"
 
 #include <opencv2/calib3d.hpp>
@@ -517,12 +518,7 @@ TEST(EstimateMotion, GreyViewsWork)
 // 140 mm) it takes the travel made.
 TEST(EstimateMotion, TheExpectedTravelTellsARepeatingViewsRepeatsApart)
 {
-  StereoGeometry g;
-  g.view_size = cv::Size(640, 480);
-  g.fx = g.fy = 1000;
-  g.cx[LEFT] = g.cx[RIGHT] = 320;
-  g.cy = 240;
-  g.baseline_mm = 100;
+  const StereoGeometry g = simple_geometry(cv::Size(640, 480), 1000, 100);
   const double z = 2000, travel = 150;
   const int period = 60, shift = 75, disparity = 50; // fx travel / z, fx baseline / z
   // One period of smooth texture, wrapped: blurred over three periods, the middle one kept.
