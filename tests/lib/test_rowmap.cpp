@@ -591,6 +591,38 @@ TEST(RowMap, TwoFramesThatSeeABandsCanopyOutvoteTheNearest)
   EXPECT_TRUE(later.cell(32, 1).present);
 }
 
+TEST(RowMap, ACanopysEndReachesAsFarAsTheFramesNearItSawIt)
+{
+  // Canopy A ends at 1.600 m. The frame nearest that end (at 1.575 m) sees it only to 1.585 m,
+  // as when a nearer leaf hides the rest from there; a frame at 1.700 m, 0.06 off its axis at
+  // 2 m, sees it to 1.596 m; one at 2.200 m, 0.3 off its axis where a depth error moves a pixel
+  // along the row three times as far, to 1.620 m. The canopy is what the frames near it saw of
+  // it, together: the map's end and the valve's follow the second frame, not the third.
+  const StereoGeometry g = camera();
+  RowMap map;
+  for (const auto &[end_mm, pos] :
+       std::vector<std::pair<double, double>>{{1585, 1575}, {1596, 1700}, {1620, 2200}}) {
+    std::vector<Wall> walls = kWalls;
+    walls[0].x1 = end_mm;
+    const View v = cast(g, walls, pos);
+    map.add_frame(v.mask, v.points, g, level_ground(), pos);
+  }
+  const double px = 2.5e-3; // m
+  for (int k = 1; k < 4; ++k) {
+    SCOPED_TRACE("band " + std::to_string(k));
+    EXPECT_NEAR(map.cell(31, k).lo_m, 1.550, px); // bin 1.550-1.600
+    EXPECT_NEAR(map.cell(31, k).hi_m, 1.596, px);
+    EXPECT_FALSE(map.cell(32, k).present); // the third frame's canopy there is no one's vote
+  }
+  const std::vector<SectionCommand> cmds = plan_commands(map, 100, 4000);
+  std::vector<SprayedStretch> got;
+  for (const SprayedStretch &st : sprayed_stretches(cmds))
+    if (st.section == 1 && st.start_m < 1.6)
+      got.push_back(st);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_NEAR(got[0].end_m, 1.596, px);
+}
+
 TEST(RowMap, TheSprayerWaitsForTheFramesStillToVote)
 {
   // A canopy at 2.50-2.65 m (in the gap before the third) that the frames nearest its bins do

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -224,13 +225,13 @@ long RowMap::last_bin() const
 
 RowMapCell RowMap::cell(long bin, int band) const
 {
-  const auto own = [&](long b) -> const RowMapCell * {
+  const auto own = [&](long b) -> std::optional<RowMapCell> {
     const auto it = bins_.find(b);
-    return it == bins_.end() ? nullptr : &it->second.cell(band);
+    return it == bins_.end() ? std::nullopt : std::optional<RowMapCell>(it->second.cell(band));
   };
   if (band < 0 || band >= n_bands())
     return RowMapCell();
-  const RowMapCell *c = own(bin);
+  const std::optional<RowMapCell> c = own(bin);
   if (!c)
     return RowMapCell();
   RowMapCell out = *c;
@@ -240,7 +241,7 @@ RowMapCell RowMap::cell(long bin, int band) const
   // common edge: the end of a cap that enters the band with a sliver.
   const double bin_m = params_.bin_mm * kMmToM, tol = kTouchBins * bin_m;
   const double lo_edge = double(bin) * bin_m, hi_edge = lo_edge + bin_m;
-  const RowMapCell *left = own(bin - 1), *right = own(bin + 1);
+  const std::optional<RowMapCell> left = own(bin - 1), right = own(bin + 1);
   // (reaching more than the tolerance into the cell: a pixel's spill across the edge is not it)
   out.present =
       out.hi_m - out.lo_m > tol &&
@@ -538,6 +539,8 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
         if (frame_cells[k].present) {
           Vote &v = out.votes[k];
           ++v.count;
+          v.lo_m = std::min(v.lo_m, frame_cells[k].lo_m);
+          v.hi_m = std::max(v.hi_m, frame_cells[k].hi_m);
           if (offset < v.offset) {
             v.offset = offset;
             v.cell = frame_cells[k];
@@ -551,10 +554,15 @@ void RowMap::add_frame(const cv::Mat &mask, const std::vector<PixelPoint> &point
   }
 }
 
-const RowMapCell &RowMap::Bin::cell(int band) const
+RowMapCell RowMap::Bin::cell(int band) const
 {
   const std::size_t k = std::size_t(band);
-  return !nearest[k].present && votes[k].count >= kVotes ? votes[k].cell : nearest[k];
+  RowMapCell c = !nearest[k].present && votes[k].count >= kVotes ? votes[k].cell : nearest[k];
+  if (c.present && votes[k].count > 0) {
+    c.lo_m = std::min(c.lo_m, votes[k].lo_m);
+    c.hi_m = std::max(c.hi_m, votes[k].hi_m);
+  }
+  return c;
 }
 
 void RowMap::write_csv(const std::string &path) const

@@ -110,7 +110,9 @@ struct RowMapCell {
   double distance_m = 0; // near-face depth, when present
   double fill = 0;       // share of the cell covered by canopy (0..1)
   // Where along the row its canopy pixels lie (world x, m), when present: a sprayer's section
-  // switches at the canopy's edge, not at the bin's.
+  // switches at the canopy's edge, not at the bin's. The frames that see the bin near their
+  // axis (those that vote, see rowmap.cpp) reach as far as any of them saw canopy: each sees
+  // what nearer leaves leave visible from its place, and the canopy is all of that.
   double lo_m = 0, hi_m = 0;
 };
 
@@ -218,6 +220,9 @@ private:
     int count = 0;
     double offset = std::numeric_limits<double>::infinity();
     RowMapCell cell;
+    // where along the row the voting frames' canopy reaches, together (world x, m)
+    double lo_m = std::numeric_limits<double>::infinity();
+    double hi_m = -std::numeric_limits<double>::infinity();
   };
   struct Bin {
     bool in_span = false;     // the nearest frame's mask spoke for the bin (see add_frame)
@@ -225,7 +230,7 @@ private:
     std::vector<RowMapCell> nearest; // per band, as the nearest frame saw it
     std::vector<Vote> votes;         // per band
     // What the map holds of a band: the nearest frame's cell, or the votes' (see the top).
-    const RowMapCell &cell(int band) const;
+    RowMapCell cell(int band) const;
   };
   RowMapParams params_;
   std::vector<double> edges_;
