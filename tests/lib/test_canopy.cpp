@@ -5,6 +5,7 @@
 #include "treestereo/canopy.hpp"
 #include "treestereo/rowtrack.hpp"
 #include "typed_error.hpp"
+#include "simple_geometry.hpp"
 
 #include "../../lib/core/src/mask_strips.hpp"
 
@@ -34,15 +35,7 @@ struct Scene {
   // The ground as mown grass: no texture of its own, only a shade that darkens with the
   // distance (so along the view's columns) instead of the leafy texture.
   bool smooth_ground = false;
-  StereoGeometry g;
-  Scene()
-  {
-    g.view_size = cv::Size(640, 480);
-    g.fx = g.fy = 800;
-    g.cx[0] = g.cx[1] = 320;
-    g.cy = 240;
-    g.baseline_mm = 60;
-  }
+  StereoGeometry g = simple_geometry(cv::Size(640, 480), 800, 60);
 
   // First hit along the ray from `o` through normalised (u, v): the object (0..n-1 sphere,
   // -1 wall, -2 ground, -3 nothing) and the point.

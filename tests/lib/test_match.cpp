@@ -6,6 +6,7 @@
 #include "treestereo/presets.hpp"
 #include "treestereo/stats.hpp"
 #include "typed_error.hpp"
+#include "simple_geometry.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -886,12 +887,7 @@ TEST(SiftmatchPreset, HoldsTheElementsDefaults)
   EXPECT_EQ(p.refine_params.relocate, 1);
   EXPECT_NO_THROW(check_refine_params(p.refine_params));
 
-  StereoGeometry g;
-  g.view_size = cv::Size(1296, 972);
-  g.fx = g.fy = 1100;
-  g.cx[0] = g.cx[1] = 648;
-  g.cy = 486;
-  g.baseline_mm = 50;
+  const StereoGeometry g = simple_geometry(cv::Size(1296, 972), 1100, 50);
   const MatchParams v = SiftmatchPreset::for_view(g, g.view_size.width);
   EXPECT_EQ(v.detect.scale, 0.5);
   EXPECT_NEAR(v.matcher.constraints.min_disparity, 1100.0 * 50 / 10000, 1e-9);

@@ -654,12 +654,7 @@ TEST(MetricsSmoother, ExponentialAndResetOnNoTree)
 // gives the surface's figures back.
 TEST(Metrics, AreaWeightingUndoesCrowdedPoints)
 {
-  StereoGeometry g;
-  g.view_size = cv::Size(400, 300);
-  g.fx = g.fy = 800;
-  g.cx[0] = g.cx[1] = 200;
-  g.cy = 150;
-  g.baseline_mm = 50;
+  const StereoGeometry g = simple_geometry(cv::Size(400, 300), 800, 50);
   Silhouette sil;
   sil.present = true;
   sil.mask = cv::Mat::zeros(g.view_size, CV_8U);

@@ -1,6 +1,7 @@
 // Overlay drawing: every layer lands where its item is, in the item's colour, in any channel
 // order, and nothing is drawn elsewhere.
 #include "treestereo/overlay.hpp"
+#include "simple_geometry.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -331,12 +332,7 @@ TEST(OverlayBands, SegmentIsThePinholeProjection)
 // canopy whose front is 2 m away, the round-canopy model.
 TEST(OverlayBands, TreemetricsBandsProjectOntoTheSilhouette)
 {
-  StereoGeometry g;
-  g.view_size = {640, 480};
-  g.fx = g.fy = 800;
-  g.cx[0] = g.cx[1] = 320;
-  g.cy = 240;
-  g.baseline_mm = 50;
+  const StereoGeometry g = simple_geometry(cv::Size(640, 480), 800, 50);
   Silhouette s;
   s.present = true;
   s.mask = cv::Mat::zeros(480, 640, CV_8U);
@@ -381,12 +377,7 @@ TEST(OverlayBands, TreemetricsBandsProjectOntoTheSilhouette)
 
 TEST(OverlayBands, DrawnAtTheirRowsInTheirDepthColour)
 {
-  StereoGeometry g;
-  g.view_size = {W, H};
-  g.fx = g.fy = 400;
-  g.cx[0] = g.cx[1] = 160;
-  g.cy = 120;
-  g.baseline_mm = 50;
+  const StereoGeometry g = simple_geometry(cv::Size(W, H), 400, 50);
   Band b;
   b.present = true;
   b.left_m = -0.5;

@@ -7,6 +7,7 @@
 #include "treestereo/record_json.hpp"
 #include "treestereo/stats.hpp"
 #include "typed_error.hpp"
+#include "simple_geometry.hpp"
 
 #include <gtest/gtest.h>
 
@@ -1069,12 +1070,7 @@ TEST(TreeTracker, AnEndIsOnTheViewEdgeWhenAnyOfItsPointsIs)
 
 TEST(TreeTracker, ViewEdgesOfTheStereoPair)
 {
-  StereoGeometry g;
-  g.view_size = cv::Size(1296, 972);
-  g.fx = g.fy = 1100;
-  g.cx[0] = g.cx[1] = 648;
-  g.cy = 486;
-  g.baseline_mm = 120;
+  StereoGeometry g = simple_geometry(cv::Size(1296, 972), 1100, 120);
   double l = 0, r = 0, off = 0;
   view_slopes(g, l, r, off);
   // The right camera's left edge ray, a baseline to the side; the left camera's right edge.
